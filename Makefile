@@ -1,0 +1,35 @@
+# The two commands of the README, and a few conveniences.
+#   make demo   install what is missing, build, run the main job
+#   make test   install what is missing, build, run the whole test suite
+
+BUILD_DIR ?= build
+JOBS ?= $(shell nproc)
+CMAKE_FLAGS ?=
+
+.PHONY: demo test setup build bench format clean
+
+setup:
+	@scripts/setup
+
+$(BUILD_DIR)/build.ninja:
+	cmake -S . -B $(BUILD_DIR) -G Ninja -DCMAKE_BUILD_TYPE=Release $(CMAKE_FLAGS)
+
+build: setup $(BUILD_DIR)/build.ninja
+	cmake --build $(BUILD_DIR) -j $(JOBS)
+
+demo: build
+	$(BUILD_DIR)/apps/dcl-slam demo
+
+test: build
+	ctest --test-dir $(BUILD_DIR) --output-on-failure -j $(JOBS)
+
+bench: setup
+	cmake -S . -B $(BUILD_DIR)-bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DDCL_BUILD_TESTS=OFF -DDCL_BUILD_BENCHMARKS=ON
+	cmake --build $(BUILD_DIR)-bench -j $(JOBS)
+	$(BUILD_DIR)-bench/bench/dcl_bench
+
+format:
+	git ls-files '*.cpp' '*.hpp' | xargs clang-format -i
+
+clean:
+	rm -rf $(BUILD_DIR) $(BUILD_DIR)-bench

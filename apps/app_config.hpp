@@ -1,0 +1,47 @@
+#pragma once
+
+/// The configuration of the whole program: one section per module, each with
+/// a default on every field, filled from YAML by `--config FILE`.
+/// `dcl-slam config --dump` prints it.
+
+#include <string>
+#include <vector>
+
+namespace dcl::apps {
+
+/// Trajectory evaluation defaults (`eval ate`, `eval rpe`, and runs that report ATE).
+struct EvalSection {
+  double max_time_diff = 0.01;  ///< s, largest stamp difference for associating poses (evo: 0.01)
+  double time_offset = 0.0;     ///< s, added to the estimate's stamps before association
+  std::string alignment = "none";         ///< none | se3 | sim3 (evo's default: none)
+  double rpe_delta = 1.0;                 ///< RPE pair distance, in rpe_delta_unit
+  std::string rpe_delta_unit = "frames";  ///< frames | meters
+  /// KITTI odometry metric segment lengths, metres (the devkit's 100..800).
+  std::vector<double> kitti_lengths{100, 200, 300, 400, 500, 600, 700, 800};
+  int kitti_step = 10;  ///< frames between KITTI segment starts (the devkit's 10)
+
+  template <class Visitor>
+  void visit(Visitor& v) {
+    v.field("max_time_diff", max_time_diff, "s, largest stamp difference to associate poses");
+    v.field("time_offset", time_offset, "s, added to the estimate's stamps before association");
+    v.field("alignment", alignment, "none | se3 | sim3");
+    v.field("rpe_delta", rpe_delta, "RPE pair distance, in rpe_delta_unit");
+    v.field("rpe_delta_unit", rpe_delta_unit, "frames | meters");
+    v.field("kitti_lengths", kitti_lengths, "m, KITTI metric segment lengths");
+    v.field("kitti_step", kitti_step, "frames between KITTI metric segment starts");
+  }
+};
+
+/// Everything `dcl-slam` can be configured with.
+struct AppConfig {
+  std::string log_level = "info";  ///< trace | debug | info | warn | error | off
+  EvalSection eval;                ///< trajectory evaluation
+
+  template <class Visitor>
+  void visit(Visitor& v) {
+    v.field("log_level", log_level, "trace | debug | info | warn | error | off");
+    v.section("eval", eval, "trajectory evaluation");
+  }
+};
+
+}  // namespace dcl::apps

@@ -1,0 +1,163 @@
+// `dcl-slam convert`: between scan formats and between pose formats.
+#include <algorithm>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include <fmt/format.h>
+
+#include <dcl/core/error.hpp>
+#include <dcl/core/progress.hpp>
+#include <dcl/io/cloud_file.hpp>
+#include <dcl/io/file.hpp>
+#include <dcl/io/pcd.hpp>
+#include <dcl/io/ply.hpp>
+#include <dcl/io/pose_file.hpp>
+#include <dcl/io/rosbag.hpp>
+
+#include "commands.hpp"
+
+namespace dcl::apps {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+struct ConvertOptions {
+  std::string input;
+  std::string output;
+  std::string from;                  ///< pose format of the input (kitti | tum)
+  std::string to;                    ///< pose format of the output (kitti | tum)
+  std::string topic;                 ///< bag topic
+  std::string times;                 ///< times file of a KITTI pose input
+  std::string out_times;             ///< times file to write beside a KITTI pose output
+  std::string encoding = "binary";   ///< PCD / PLY encoding: ascii | binary
+  std::string cloud_format = "bin";  ///< per-scan files from a bag: bin | pcd | ply
+};
+
+std::string extensionOf(const std::string& path) {
+  std::string ext = fs::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+
+bool isCloudFile(const std::string& path) {
+  const std::string ext = extensionOf(path);
+  return ext == ".bin" || ext == ".pcd" || ext == ".ply";
+}
+
+std::optional<std::string> optionalPath(const std::string& path) {
+  return path.empty() ? std::nullopt : std::optional<std::string>(path);
+}
+
+void writeCloudAs(const std::string& path, const core::PointCloud& cloud,
+                  const std::string& encoding) {
+  if (encoding != "ascii" && encoding != "binary") {
+    throw core::Error("--encoding: '" + encoding + "' is not ascii or binary");
+  }
+  const bool ascii = encoding == "ascii";
+  const std::string ext = extensionOf(path);
+  if (ext == ".pcd") {
+    io::writePcd(path, cloud, {ascii ? io::PcdEncoding::kAscii : io::PcdEncoding::kBinary});
+  } else if (ext == ".ply") {
+    io::writePly(path, cloud,
+                 {ascii ? io::PlyEncoding::kAscii : io::PlyEncoding::kBinaryLittleEndian});
+  } else {
+    io::writeCloud(path, cloud);
+  }
+}
+
+void convertCloud(const ConvertOptions& o) {
+  if (!isCloudFile(o.output)) {
+    throw core::Error("output '" + o.output + "': a scan converts to .bin, .pcd or .ply");
+  }
+  const core::PointCloud cloud = io::readCloud(o.input);
+  writeCloudAs(o.output, cloud, o.encoding);
+  fmt::print("{} points: {} -> {}\n", cloud.size(), o.input, o.output);
+}
+
+void convertPoses(const ConvertOptions& o) {
+  if (o.from.empty() || o.to.empty()) {
+    throw core::Error("pose files need --from and --to (kitti or tum)");
+  }
+  const core::Trajectory trajectory =
+      io::readPoses(o.input, io::parsePoseFormat(o.from), optionalPath(o.times));
+  io::writePoses(o.output, io::parsePoseFormat(o.to), trajectory, optionalPath(o.out_times));
+  fmt::print("{} poses: {} ({}) -> {} ({})\n", trajectory.size(), o.input, o.from, o.output, o.to);
+}
+
+/// Every cloud of a bag topic as numbered files in a folder, with their stamps in times.txt.
+void convertBagClouds(const ConvertOptions& o) {
+  io::BagCloudReader reader(o.input, o.topic);
+  const fs::path folder(o.output);
+  fs::create_directories(folder);
+  std::vector<double> stamps;
+  core::ProgressBar progress("convert", reader.size(), "scans");
+  while (auto scan = reader.next()) {
+    const auto name = fmt::format("{:06}.{}", stamps.size(), o.cloud_format);
+    writeCloudAs((folder / name).string(), scan->cloud, o.encoding);
+    stamps.push_back(scan->stamp);
+    progress.update(stamps.size());
+  }
+  progress.finish();
+  io::writeFileAtomic((folder / "times.txt").string(), [&](std::ostream& out) {
+    for (double t : stamps) out << fmt::format("{:.9f}\n", t);
+  });
+  fmt::print("{} scans of {} -> {}/\n", stamps.size(), o.topic, o.output);
+}
+
+std::string describeTopics(const std::vector<io::BagTopic>& topics) {
+  std::string list;
+  for (const auto& t : topics)
+    list += fmt::format("\n  {} ({}, {} messages)", t.name, t.type, t.messages);
+  return list;
+}
+
+void convertBag(const ConvertOptions& o) {
+  const auto topics = io::listBagTopics(o.input);
+  if (o.topic.empty())
+    throw core::Error("a bag input needs --topic; its topics:" + describeTopics(topics));
+  if (o.cloud_format != "bin" && o.cloud_format != "pcd" && o.cloud_format != "ply") {
+    throw core::Error("--cloud-format: '" + o.cloud_format + "' is not bin, pcd or ply");
+  }
+  const auto it = std::find_if(topics.begin(), topics.end(), [&](const io::BagTopic& t) {
+    return t.name == o.topic || t.name == "/" + o.topic || "/" + t.name == o.topic;
+  });
+  if (it != topics.end() && it->type == "sensor_msgs/PointCloud2") return convertBagClouds(o);
+  const core::Trajectory trajectory = io::readBagTrajectory(o.input, o.topic);
+  const std::string to = o.to.empty() ? "tum" : o.to;
+  io::writePoses(o.output, io::parsePoseFormat(to), trajectory, optionalPath(o.out_times));
+  fmt::print("{} poses of {} -> {} ({})\n", trajectory.size(), o.topic, o.output, to);
+}
+
+void runConvert(const ConvertOptions& o) {
+  if (extensionOf(o.input) == ".bag") return convertBag(o);
+  if (isCloudFile(o.input)) return convertCloud(o);
+  convertPoses(o);
+}
+
+}  // namespace
+
+void addConvertCommand(CLI::App& app) {
+  auto* cmd = app.add_subcommand(
+      "convert",
+      "convert scans (.bin .pcd .ply), pose files (--from/--to kitti|tum) or ROS1 bag topics");
+  auto o = std::make_shared<ConvertOptions>();
+  cmd->add_option("input", o->input, "input file (scan, pose file or .bag)")->required();
+  cmd->add_option("output", o->output, "output file (or folder, for a bag's scans)")->required();
+  cmd->add_option("--from", o->from, "pose format of the input: kitti or tum");
+  cmd->add_option("--to", o->to, "pose format of the output: kitti or tum (bags: tum)");
+  cmd->add_option("--topic", o->topic,
+                  "bag topic: sensor_msgs/PointCloud2, nav_msgs/Odometry "
+                  "or geometry_msgs/PoseStamped");
+  cmd->add_option("--times", o->times, "times file of a KITTI pose input");
+  cmd->add_option("--out-times", o->out_times, "times file to write with a KITTI pose output");
+  cmd->add_option("--encoding", o->encoding, "PCD / PLY output: ascii or binary")
+      ->capture_default_str();
+  cmd->add_option("--cloud-format", o->cloud_format, "scan files from a bag: bin, pcd or ply")
+      ->capture_default_str();
+  cmd->callback([o] { runConvert(*o); });
+}
+
+}  // namespace dcl::apps

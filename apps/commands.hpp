@@ -1,0 +1,28 @@
+#pragma once
+
+/// The subcommands of `dcl-slam`. Each `add*Command` registers one subcommand
+/// (with its options and its callback) on the main CLI11 app.
+
+#include <CLI/CLI.hpp>
+
+#include "app_config.hpp"
+
+namespace dcl::apps {
+
+/// `eval ate`, `eval rpe`: trajectory metrics, evo-compatible.
+void addEvalCommand(CLI::App& app, const AppConfig& config);
+
+/// `convert`: between the scan formats (KITTI .bin, PCD, PLY, ROS1 bag topics)
+/// and the pose formats (KITTI, TUM, ROS1 bag topics).
+void addConvertCommand(CLI::App& app);
+
+/// `config --dump`: the effective configuration as YAML.
+void addConfigCommand(CLI::App& app, const AppConfig& config);
+
+/// `version`: the program's and its main libraries' versions.
+void addVersionCommand(CLI::App& app);
+
+/// `demo`: the built-in default run.
+void addDemoCommand(CLI::App& app, const AppConfig& config);
+
+}  // namespace dcl::apps

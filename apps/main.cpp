@@ -1,0 +1,75 @@
+// dcl-slam: the one command of the project. Subcommands live in cmd_*.cpp.
+#include <cstdio>
+#include <exception>
+#include <optional>
+#include <string>
+#include <string_view>
+
+#include <dcl/core/error.hpp>
+#include <dcl/core/log.hpp>
+#include <dcl/io/config.hpp>
+
+#include "app_config.hpp"
+#include "commands.hpp"
+
+namespace {
+
+/// The value of `--name VALUE` or `--name=VALUE` in argv, if given (the last one wins).
+std::optional<std::string> findOption(int argc, char** argv, std::string_view name) {
+  std::optional<std::string> value;
+  for (int i = 1; i < argc; ++i) {
+    const std::string_view arg = argv[i];
+    if (arg == name && i + 1 < argc) value = argv[i + 1];
+    if (arg.starts_with(name) && arg.size() > name.size() && arg[name.size()] == '=') {
+      value = std::string(arg.substr(name.size() + 1));
+    }
+  }
+  return value;
+}
+
+/// Reads `--config FILE` and `--log-level` before the subcommands parse, so that
+/// their defaults come from the configuration and logging is set up first.
+dcl::apps::AppConfig preloadConfig(int argc, char** argv) {
+  dcl::apps::AppConfig config;
+  if (const auto path = findOption(argc, argv, "--config")) {
+    dcl::io::applyYaml(dcl::io::readConfigText(*path), config, *path);
+  }
+  if (const auto level = findOption(argc, argv, "--log-level")) config.log_level = *level;
+  dcl::core::setupLogging(config.log_level);
+  return config;
+}
+
+int run(int argc, char** argv) {
+  dcl::apps::AppConfig config = preloadConfig(argc, argv);
+  CLI::App app{"dcl-slam: distributed collaborative LiDAR SLAM for robot swarms", "dcl-slam"};
+  app.require_subcommand(1);
+  app.fallthrough();  // global options may follow the subcommand
+  std::string config_path;
+  app.add_option("--config", config_path, "YAML configuration file (see `config --dump`)");
+  std::string log_level = config.log_level;
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off");
+  dcl::apps::addEvalCommand(app, config);
+  dcl::apps::addConvertCommand(app);
+  dcl::apps::addConfigCommand(app, config);
+  dcl::apps::addVersionCommand(app);
+  dcl::apps::addDemoCommand(app, config);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (const dcl::core::Error& e) {
+    std::fprintf(stderr, "dcl-slam: error: %s\n", e.what());
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "dcl-slam: unexpected error: %s\n", e.what());
+  }
+  return 1;
+}

@@ -1,0 +1,417 @@
+// ROS and boost stay in this file: the public header knows nothing of them.
+// The generated message headers (sensor_msgs/PointCloud2.h, ...) use
+// std::allocator<void>::rebind, removed in C++20, so they do not compile here:
+// messages are decoded from their ROS1 serialisation (little-endian, strings
+// and arrays prefixed by a uint32 length) by the bounds-checked ByteReader,
+// after checking each connection's md5sum names the definition decoded here.
+#include <algorithm>
+#include <array>
+#include <map>
+
+#include <fmt/format.h>
+#include <rosbag/bag.h>
+#include <rosbag/view.h>
+
+#include <dcl/core/error.hpp>
+#include <dcl/io/file.hpp>
+#include <dcl/io/rosbag.hpp>
+
+#include "point_fields.hpp"
+
+namespace dcl::io {
+
+namespace {
+
+using detail::PointLayout;
+using detail::ScalarKind;
+using detail::ScalarType;
+
+/// A message type this file decodes, with the md5sum of its definition.
+struct KnownType {
+  std::string_view name;
+  std::string_view md5;
+};
+constexpr KnownType kCloudType = {"sensor_msgs/PointCloud2", "1158d486dd51d683ce2f1be655c3c181"};
+constexpr KnownType kOdometryType = {"nav_msgs/Odometry", "cd5e73d190d741a2f92e81eda573aca7"};
+constexpr KnownType kPoseStampedType = {"geometry_msgs/PoseStamped",
+                                        "d3812c3cbc69362b77dc0b19b345f8f5"};
+constexpr KnownType kPoseCovarianceType = {"geometry_msgs/PoseWithCovarianceStamped",
+                                           "953b798c0f514ff060a53a3498ce6246"};
+
+/// Messages larger than this are taken as a corrupt length.
+constexpr std::size_t kMaxMessageBytes = std::size_t{1} << 30;
+
+std::string_view bareTopic(std::string_view topic) {
+  while (!topic.empty() && topic.front() == '/') topic.remove_prefix(1);
+  return topic;
+}
+
+/// Selects the connections of one topic, with or without its leading '/'.
+struct TopicMatch {
+  std::string topic;
+  bool operator()(const rosbag::ConnectionInfo* c) const {
+    return bareTopic(c->topic) == bareTopic(topic);
+  }
+};
+
+[[noreturn]] void failTopic(const std::string& path, const std::string& topic,
+                            const std::string& what) {
+  throw core::FileError({path}, fmt::format("topic '{}': {}", topic, what));
+}
+
+[[noreturn]] void failMessage(const std::string& path, const std::string& topic, std::size_t i,
+                              const std::string& what) {
+  throw core::FileError({path}, fmt::format("topic '{}' message {}: {}", topic, i, what));
+}
+
+/// Runs `f`, turning rosbag's and boost's exceptions into FileError.
+template <class F>
+auto guarded(const std::string& path, F&& f) {
+  try {
+    return f();
+  } catch (const core::Error&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw core::FileError({path}, fmt::format("cannot read the bag: {}", e.what()));
+  }
+}
+
+void openBag(rosbag::Bag& bag, const std::string& path) {
+  requireFile(path);
+  guarded(path, [&] { bag.open(path, rosbag::bagmode::Read); });
+}
+
+std::vector<BagTopic> topicsOf(rosbag::Bag& bag) {
+  rosbag::View all(bag);
+  std::map<std::string, BagTopic> topics;
+  for (const auto* c : all.getConnections()) {
+    BagTopic& t = topics[c->topic];
+    t.name = c->topic;
+    if (t.type.empty()) t.type = c->datatype;
+    if (t.type.find(c->datatype) == std::string::npos) t.type.append(",").append(c->datatype);
+  }
+  std::vector<BagTopic> out;
+  for (auto& [name, t] : topics) {
+    t.messages = rosbag::View(bag, rosbag::TopicQuery(name)).size();
+    out.push_back(std::move(t));
+  }
+  return out;
+}
+
+std::string describeTopics(rosbag::Bag& bag) {
+  std::string list;
+  for (const auto& t : topicsOf(bag)) {
+    list.append(list.empty() ? "" : ", ").append(t.name).append(" (").append(t.type).append(")");
+  }
+  return list.empty() ? "none" : list;
+}
+
+/// Throws unless `topic` exists and every connection on it has one of `types`.
+void requireTopicType(rosbag::Bag& bag, const std::string& path, const std::string& topic,
+                      const std::vector<KnownType>& types) {
+  rosbag::View view(bag, TopicMatch{topic});
+  const auto connections = view.getConnections();
+  if (connections.empty()) {
+    failTopic(path, topic,
+              fmt::format("no such topic in the bag; its topics: {}", describeTopics(bag)));
+  }
+  for (const auto* c : connections) {
+    const auto known = std::find_if(types.begin(), types.end(),
+                                    [&](const KnownType& t) { return t.name == c->datatype; });
+    std::string expected;
+    for (const auto& t : types) expected.append(expected.empty() ? "" : " or ").append(t.name);
+    if (known == types.end()) {
+      failTopic(path, topic, fmt::format("type is {}, expected {}", c->datatype, expected));
+    }
+    if (known->md5 != c->md5sum) {
+      failTopic(path, topic,
+                fmt::format("{} with md5sum {}, not the known definition {}", c->datatype,
+                            c->md5sum, known->md5));
+    }
+  }
+}
+
+// ---- ROS1 serialisation ----
+
+/// Receives a message's bytes from rosbag (the Stream concept of MessageInstance::write).
+struct ByteSink {
+  std::vector<char> bytes;
+  std::uint8_t* advance(std::uint32_t n) {
+    if (n > kMaxMessageBytes - bytes.size()) throw core::Error("message length is corrupt");
+    const std::size_t at = bytes.size();
+    bytes.resize(at + n);
+    return reinterpret_cast<std::uint8_t*>(bytes.data() + at);
+  }
+};
+
+std::vector<char> messageBytes(const rosbag::MessageInstance& m) {
+  ByteSink sink;
+  m.write(sink);
+  return std::move(sink.bytes);
+}
+
+std::string readString(ByteReader& in, const char* what) {
+  const auto n = in.read<std::uint32_t>(what);
+  const auto bytes = in.take(n, what);
+  return {bytes.data(), bytes.size()};
+}
+
+/// A std_msgs/Header; returns its stamp in seconds.
+double readHeaderStamp(ByteReader& in) {
+  in.skip(4, "header.seq");
+  const auto secs = in.read<std::uint32_t>("header.stamp.sec");
+  const auto nsecs = in.read<std::uint32_t>("header.stamp.nsec");
+  readString(in, "header.frame_id");
+  return secs + nsecs * 1e-9;
+}
+
+struct RosField {
+  std::string name;
+  std::uint32_t offset = 0;
+  std::uint8_t datatype = 0;
+};
+
+struct RosCloud {
+  double stamp = 0.0;
+  std::uint32_t height = 0;
+  std::uint32_t width = 0;
+  std::vector<RosField> fields;
+  bool is_bigendian = false;
+  std::uint32_t point_step = 0;
+  std::uint32_t row_step = 0;
+  std::span<const char> data;
+};
+
+std::vector<RosField> readFields(ByteReader& in) {
+  const auto n = in.read<std::uint32_t>("fields length");
+  std::vector<RosField> fields;
+  fields.reserve(std::min<std::size_t>(n, in.remaining() / 13));  // 13 bytes a field at least
+  for (std::uint32_t i = 0; i < n; ++i) {
+    RosField f;
+    f.name = readString(in, "field name");
+    f.offset = in.read<std::uint32_t>("field offset");
+    f.datatype = in.read<std::uint8_t>("field datatype");
+    in.skip(4, "field count");
+    fields.push_back(std::move(f));
+  }
+  return fields;
+}
+
+RosCloud readCloud(ByteReader& in) {
+  RosCloud c;
+  c.stamp = readHeaderStamp(in);
+  c.height = in.read<std::uint32_t>("height");
+  c.width = in.read<std::uint32_t>("width");
+  c.fields = readFields(in);
+  c.is_bigendian = in.read<std::uint8_t>("is_bigendian") != 0;
+  c.point_step = in.read<std::uint32_t>("point_step");
+  c.row_step = in.read<std::uint32_t>("row_step");
+  c.data = in.take(in.read<std::uint32_t>("data length"), "data");
+  in.skip(1, "is_dense");
+  return c;
+}
+
+// ---- sensor_msgs/PointCloud2 ----
+
+std::optional<ScalarType> rosScalarType(std::uint8_t datatype) {
+  switch (datatype) {  // sensor_msgs/PointField constants
+    case 1:
+      return ScalarType{ScalarKind::kInt, 1};
+    case 2:
+      return ScalarType{ScalarKind::kUint, 1};
+    case 3:
+      return ScalarType{ScalarKind::kInt, 2};
+    case 4:
+      return ScalarType{ScalarKind::kUint, 2};
+    case 5:
+      return ScalarType{ScalarKind::kInt, 4};
+    case 6:
+      return ScalarType{ScalarKind::kUint, 4};
+    case 7:
+      return ScalarType{ScalarKind::kFloat, 4};
+    case 8:
+      return ScalarType{ScalarKind::kFloat, 8};
+    default:
+      return std::nullopt;
+  }
+}
+
+PointLayout cloudLayout(const RosCloud& msg) {
+  PointLayout layout;
+  layout.swap = msg.is_bigendian;
+  for (const auto& f : msg.fields) {
+    const auto channel = detail::channelOf(f.name);
+    if (!channel) continue;
+    const auto type = rosScalarType(f.datatype);
+    if (!type)
+      throw core::Error(fmt::format("field '{}': unknown datatype {}", f.name, f.datatype));
+    if (std::size_t{f.offset} + type->size > msg.point_step) {
+      throw core::Error(fmt::format("field '{}' (offset {}, {} bytes) overruns point_step {}",
+                                    f.name, f.offset, type->size, msg.point_step));
+    }
+    layout.assign(*channel, {f.offset, msg.point_step, *type, f.name});
+  }
+  if (auto missing = layout.missingXyz()) {
+    throw core::Error(fmt::format("no field '{}' among the PointCloud2 fields", *missing));
+  }
+  return layout;
+}
+
+/// Checks width, height, point_step and row_step against the data length.
+void checkCloudSize(const RosCloud& msg) {
+  if (msg.width == 0 || msg.height == 0) return;
+  const std::size_t row_bytes = std::size_t{msg.width} * msg.point_step;  // < 2^64
+  if (msg.row_step < row_bytes) {
+    throw core::Error(fmt::format("row_step {} is less than width {} x point_step {}", msg.row_step,
+                                  msg.width, msg.point_step));
+  }
+  const std::size_t total = std::size_t{msg.row_step} * msg.height;
+  if (msg.data.size() < total) {
+    throw core::Error(fmt::format("data holds {} bytes, height {} x row_step {} needs {}",
+                                  msg.data.size(), msg.height, msg.row_step, total));
+  }
+}
+
+core::PointCloud decodeCloud(const RosCloud& msg, bool drop_nan) {
+  const PointLayout layout = cloudLayout(msg);
+  checkCloudSize(msg);
+  detail::CloudBuilder builder(layout, drop_nan);
+  builder.reserve(std::size_t{msg.width} * msg.height);
+  for (std::size_t r = 0; r < msg.height; ++r) {
+    const char* row = msg.data.data() + r * msg.row_step;
+    for (std::size_t c = 0; c < msg.width; ++c) {
+      if (auto error = builder.add(detail::loadPoint(row, c, layout))) {
+        throw core::Error(fmt::format("point {}: {}", r * msg.width + c, *error));
+      }
+    }
+  }
+  return builder.finish(msg.stamp);
+}
+
+// ---- poses ----
+
+Eigen::Isometry3d readPose(ByteReader& in) {
+  std::array<double, 7> v{};  // position x y z, orientation x y z w
+  in.readInto(v.data(), sizeof(v), "pose");
+  const Eigen::Vector3d t(v[0], v[1], v[2]);
+  const Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);
+  if (!t.allFinite() || !q.coeffs().allFinite() || q.norm() < 1e-9) {
+    in.fail(fmt::format("pose ({} {} {}; {} {} {} {}) is not a rigid transform", v[0], v[1], v[2],
+                        v[3], v[4], v[5], v[6]));
+  }
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = q.normalized().toRotationMatrix();
+  T.translation() = t;
+  return T;
+}
+
+std::pair<double, Eigen::Isometry3d> readStampedPose(ByteReader& in, std::string_view type) {
+  const double stamp = readHeaderStamp(in);
+  if (type == kOdometryType.name) readString(in, "child_frame_id");
+  return {stamp, readPose(in)};
+}
+
+}  // namespace
+
+std::vector<BagTopic> listBagTopics(const std::string& path) {
+  rosbag::Bag bag;
+  openBag(bag, path);
+  return guarded(path, [&] { return topicsOf(bag); });
+}
+
+struct BagCloudReader::Impl {
+  std::string path;
+  std::string topic;
+  BagCloudOptions options;
+  rosbag::Bag bag;
+  std::unique_ptr<rosbag::View> view;
+  rosbag::View::iterator it;
+  std::size_t size = 0;
+  std::size_t index = 0;
+
+  /// The current message's bytes; advances past it even when it cannot be read.
+  std::vector<char> take() {
+    std::vector<char> bytes;
+    try {
+      bytes = messageBytes(*it);
+    } catch (...) {
+      ++it;
+      throw;
+    }
+    ++it;
+    return bytes;
+  }
+};
+
+BagCloudReader::BagCloudReader(const std::string& path, const std::string& topic,
+                               const BagCloudOptions& options)
+    : impl_(std::make_unique<Impl>()) {
+  impl_->path = path;
+  impl_->topic = topic;
+  impl_->options = options;
+  openBag(impl_->bag, path);
+  guarded(path, [&] {
+    requireTopicType(impl_->bag, path, topic, {kCloudType});
+    impl_->view = std::make_unique<rosbag::View>(impl_->bag, TopicMatch{topic});
+    impl_->size = impl_->view->size();
+    impl_->it = impl_->view->begin();
+  });
+}
+
+BagCloudReader::~BagCloudReader() = default;
+BagCloudReader::BagCloudReader(BagCloudReader&&) noexcept = default;
+BagCloudReader& BagCloudReader::operator=(BagCloudReader&&) noexcept = default;
+
+std::size_t BagCloudReader::size() const {
+  return impl_->size;
+}
+std::size_t BagCloudReader::index() const {
+  return impl_->index;
+}
+
+std::optional<StampedCloud> BagCloudReader::next() {
+  if (impl_->index >= impl_->size || impl_->it == impl_->view->end()) return std::nullopt;
+  const std::size_t i = impl_->index++;
+  try {
+    const std::vector<char> bytes = impl_->take();
+    ByteReader in(bytes, "message bytes");
+    const RosCloud msg = readCloud(in);
+    return StampedCloud{msg.stamp, decodeCloud(msg, impl_->options.drop_nan)};
+  } catch (const std::exception& e) {
+    failMessage(impl_->path, impl_->topic, i, e.what());
+  }
+}
+
+std::vector<StampedCloud> readBagClouds(const std::string& path, const std::string& topic,
+                                        const BagCloudOptions& options) {
+  BagCloudReader reader(path, topic, options);
+  std::vector<StampedCloud> clouds;
+  clouds.reserve(reader.size());
+  while (auto cloud = reader.next()) clouds.push_back(std::move(*cloud));
+  return clouds;
+}
+
+core::Trajectory readBagTrajectory(const std::string& path, const std::string& topic) {
+  rosbag::Bag bag;
+  openBag(bag, path);
+  return guarded(path, [&] {
+    requireTopicType(bag, path, topic, {kOdometryType, kPoseStampedType, kPoseCovarianceType});
+    rosbag::View view(bag, TopicMatch{topic});
+    core::Trajectory trajectory;
+    trajectory.reserve(view.size());
+    std::size_t i = 0;
+    for (auto it = view.begin(); it != view.end(); ++it, ++i) {
+      try {
+        const std::vector<char> bytes = messageBytes(*it);
+        ByteReader in(bytes, "message bytes");
+        const auto [stamp, pose] = readStampedPose(in, it->getDataType());
+        trajectory.push_back(stamp, pose);
+      } catch (const std::exception& e) {
+        failMessage(path, topic, i, e.what());
+      }
+    }
+    return trajectory;
+  });
+}
+
+}  // namespace dcl::io

@@ -1,0 +1,231 @@
+"""End-to-end tests of the dcl-slam command, run as a user runs it.
+
+The metrics are compared with tests/eval/reference_metrics.py, an
+independent numpy implementation of evo's definitions.
+"""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+
+DCL_SLAM = os.environ["DCL_SLAM"]
+DATA = os.environ["DCL_DATA_DIR"]
+SOURCE = os.environ["DCL_SOURCE_DIR"]
+EVO = os.path.join(DATA, "trajectories", "evo")
+REFERENCE = os.path.join(SOURCE, "tests", "eval", "reference_metrics.py")
+
+
+def run(*args, check=True):
+    """Runs dcl-slam with args; returns (exit code, stdout, stderr)."""
+    proc = subprocess.run([DCL_SLAM, *args], capture_output=True, text=True, timeout=300)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"dcl-slam {' '.join(args)} failed: {proc.stderr}")
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+def reference(*args):
+    proc = subprocess.run([sys.executable, REFERENCE, *args], capture_output=True, text=True,
+                          timeout=300, check=True)
+    return json.loads(proc.stdout)
+
+
+def leaves(value, prefix=""):
+    """Flattens nested JSON into {"a.b": leaf}."""
+    if isinstance(value, dict):
+        out = {}
+        for key, item in value.items():
+            out.update(leaves(item, f"{prefix}{key}."))
+        return out
+    return {prefix.rstrip("."): value}
+
+
+class Metrics(unittest.TestCase):
+    """dcl-slam eval against the independent reference, to 1e-6 relative."""
+
+    def assertMatchesReference(self, ours, ref):
+        ours, ref = leaves(ours), leaves(ref)
+        self.assertEqual(set(ref) - set(ours), set(), "fields missing from dcl-slam's JSON")
+        for key, expected in ref.items():
+            got = ours[key]
+            if isinstance(expected, (int, float)) and not isinstance(expected, bool):
+                tolerance = 1e-6 * max(abs(expected), 1e-12)
+                self.assertLessEqual(abs(got - expected), tolerance,
+                                     f"{key}: dcl-slam {got!r}, reference {expected!r}")
+            else:
+                self.assertEqual(got, expected, key)
+
+    def test_ate_kitti00_orb_all_alignments(self):
+        for align in ("sim3", "se3", "none"):
+            with self.subTest(align=align):
+                args = ["--gt", os.path.join(EVO, "KITTI_00_gt.txt"),
+                        "--est", os.path.join(EVO, "KITTI_00_ORB.txt"),
+                        "--format", "kitti", "--align", align]
+                _, out, _ = run("eval", "ate", *args, "--json")
+                ours = json.loads(out)
+                self.assertEqual(ours["translation_m"]["count"], 4541)
+                self.assertMatchesReference(ours, reference("ate", *args))
+
+    def test_rpe_kitti00_sptam(self):
+        args = ["--gt", os.path.join(EVO, "KITTI_00_gt.txt"),
+                "--est", os.path.join(EVO, "KITTI_00_SPTAM.txt"),
+                "--format", "kitti", "--align", "none", "--delta", "1"]
+        _, out, _ = run("eval", "rpe", *args, "--json")
+        ours = json.loads(out)
+        self.assertIsNotNone(ours["kitti"])
+        self.assertMatchesReference(ours, reference("rpe", *args))
+
+    def test_ate_tum_association(self):
+        args = ["--gt", os.path.join(EVO, "freiburg1_xyz-groundtruth.txt"),
+                "--est", os.path.join(EVO, "freiburg1_xyz-rgbdslam.txt"),
+                "--format", "tum", "--align", "se3"]
+        _, out, _ = run("eval", "ate", *args, "--json")
+        self.assertMatchesReference(json.loads(out), reference("ate", *args))
+
+    def test_human_readable_table(self):
+        _, out, _ = run("eval", "ate", "--gt", os.path.join(EVO, "KITTI_00_gt.txt"),
+                        "--est", os.path.join(EVO, "KITTI_00_ORB.txt"), "--format", "kitti",
+                        "--align", "sim3")
+        self.assertIn("4541 pose pairs", out)
+        self.assertIn("trans [m]", out)
+
+
+class Convert(unittest.TestCase):
+    """dcl-slam convert: formats round-trip through the command."""
+
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.dir = self.tmp.name
+
+    def tearDown(self):
+        self.tmp.cleanup()
+
+    def path(self, name):
+        return os.path.join(self.dir, name)
+
+    def test_scan_round_trip_through_pcd_and_ply(self):
+        scan = os.path.join(DATA, "lidar_scans", "kitti_00", "velodyne", "000000.bin")
+        run("convert", scan, self.path("a.pcd"), "--encoding", "ascii")
+        run("convert", self.path("a.pcd"), self.path("b.ply"))
+        run("convert", self.path("b.ply"), self.path("c.bin"))
+        with open(scan, "rb") as a, open(self.path("c.bin"), "rb") as c:
+            self.assertEqual(a.read(), c.read(), "KITTI scan changed through PCD and PLY")
+
+    def test_poses_round_trip_kitti_tum_kitti(self):
+        gt = os.path.join(EVO, "KITTI_00_gt.txt")
+        times = os.path.join(EVO, "KITTI_00_gt_times.txt")
+        run("convert", gt, self.path("gt.tum"), "--from", "kitti", "--to", "tum", "--times", times)
+        run("convert", self.path("gt.tum"), self.path("gt.kitti"), "--from", "tum", "--to", "kitti")
+        _, out, _ = run("eval", "ate", "--gt", gt, "--est", self.path("gt.kitti"), "--format",
+                        "kitti", "--json")
+        result = json.loads(out)
+        self.assertEqual(result["translation_m"]["count"], 4541)
+        self.assertLess(result["translation_m"]["max"], 1e-6)
+        self.assertLess(result["rotation_deg"]["max"], 1e-4)
+
+    def test_bag_pose_topic_to_tum(self):
+        bag = os.path.join(DATA, "rosbags", "evo_ROS_example.bag")
+        _, out, _ = run("convert", bag, self.path("gt.tum"), "--topic", "/groundtruth")
+        with open(self.path("gt.tum")) as f:
+            lines = [l for l in f if l.strip() and not l.startswith("#")]
+        self.assertGreater(len(lines), 100)
+        self.assertEqual(len(lines[0].split()), 8)
+
+    def test_bag_without_topic_lists_topics(self):
+        bag = os.path.join(DATA, "rosbags", "evo_ROS_example.bag")
+        code, _, err = run("convert", bag, self.path("x.tum"), check=False)
+        self.assertNotEqual(code, 0)
+        self.assertIn("groundtruth", err)
+        self.assertIn("geometry_msgs/PoseStamped", err)
+
+
+class Config(unittest.TestCase):
+    """dcl-slam config --dump: complete, commented, and it loads back."""
+
+    def test_dump_loads_back_to_the_same_configuration(self):
+        _, dump, _ = run("config", "--dump")
+        self.assertIn("max_time_diff", dump)
+        self.assertIn("#", dump)
+        with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:
+            f.write(dump.replace("max_time_diff: 0.01", "max_time_diff: 0.25"))
+        try:
+            _, again, _ = run("config", "--dump", "--config", f.name)
+        finally:
+            os.unlink(f.name)
+        self.assertIn("max_time_diff: 0.25", again)
+        self.assertEqual(dump.replace("max_time_diff: 0.01", "max_time_diff: 0.25"), again)
+
+    def test_unknown_key_is_named(self):
+        with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:
+            f.write("eval:\n  max_time_dif: 0.2\n")
+        try:
+            code, _, err = run("config", "--dump", "--config", f.name, check=False)
+        finally:
+            os.unlink(f.name)
+        self.assertNotEqual(code, 0)
+        self.assertIn("max_time_dif", err)
+        self.assertIn(f.name, err)
+
+    def test_wrong_type_is_named(self):
+        with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:
+            f.write("eval:\n  kitti_step: ten\n")
+        try:
+            code, _, err = run("config", "--dump", "--config", f.name, check=False)
+        finally:
+            os.unlink(f.name)
+        self.assertNotEqual(code, 0)
+        self.assertIn("eval.kitti_step", err)
+
+
+class Errors(unittest.TestCase):
+    """Bad input: a non-zero exit and one line naming the file and the problem."""
+
+    def test_every_subcommand_has_help(self):
+        for args in (["--help"], ["eval", "ate", "--help"], ["eval", "rpe", "--help"],
+                     ["convert", "--help"], ["config", "--help"], ["demo", "--help"],
+                     ["version", "--help"]):
+            with self.subTest(args=args):
+                code, out, _ = run(*args, check=False)
+                self.assertEqual(code, 0)
+                self.assertIn("Usage", out)
+
+    def test_version(self):
+        _, out, _ = run("version")
+        self.assertTrue(out.startswith("dcl-slam "))
+
+    def test_missing_file_is_named(self):
+        code, _, err = run("eval", "ate", "--gt", "/nonexistent/gt.txt", "--est",
+                           os.path.join(EVO, "KITTI_00_ORB.txt"), "--format", "kitti",
+                           check=False)
+        self.assertEqual(code, 1)
+        self.assertIn("/nonexistent/gt.txt", err)
+        self.assertEqual(len(err.strip().splitlines()), 1)
+
+    def test_corrupt_pose_file_names_the_line(self):
+        with tempfile.NamedTemporaryFile("w", suffix=".txt", delete=False) as f:
+            f.write("1 0 0 0 0 1 0 0 0 0 1 0\n1 0 0 0 0 1 0 zero 0 0 1 0\n")
+        try:
+            code, _, err = run("eval", "ate", "--gt", f.name, "--est", f.name, "--format",
+                               "kitti", check=False)
+        finally:
+            os.unlink(f.name)
+        self.assertEqual(code, 1)
+        self.assertIn(f"{f.name}:2", err)
+
+    def test_bad_alignment_is_refused(self):
+        gt = os.path.join(EVO, "KITTI_00_gt.txt")
+        code, _, err = run("eval", "ate", "--gt", gt, "--est", gt, "--format", "kitti",
+                           "--align", "affine", check=False)
+        self.assertNotEqual(code, 0)
+        self.assertIn("affine", err)
+
+    def test_unknown_scan_extension(self):
+        scan = os.path.join(DATA, "lidar_scans", "kitti_00", "velodyne", "000000.bin")
+        code, _, err = run("convert", scan, "/tmp/x.xyz", check=False)
+        self.assertNotEqual(code, 0)
+        self.assertIn(".xyz", err)
+
+
+if __name__ == "__main__":
+    unittest.main()
