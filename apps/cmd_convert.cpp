@@ -10,8 +10,6 @@
 #include <dcl/core/progress.hpp>
 #include <dcl/io/cloud_file.hpp>
 #include <dcl/io/file.hpp>
-#include <dcl/io/pcd.hpp>
-#include <dcl/io/ply.hpp>
 #include <dcl/io/pose_file.hpp>
 #include <dcl/io/rosbag.hpp>
 
@@ -38,34 +36,23 @@ struct ConvertOptions {
 std::string extensionOf(const std::string& path) {
   std::string ext = fs::path(path).extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(),
-                 [](unsigned char c) { return std::tolower(c); });
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return ext;
 }
 
 bool isCloudFile(const std::string& path) {
-  const std::string ext = extensionOf(path);
-  return ext == ".bin" || ext == ".pcd" || ext == ".ply";
+  return io::cloudFormatOf(path).has_value();
 }
 
 std::optional<std::string> optionalPath(const std::string& path) {
   return path.empty() ? std::nullopt : std::optional<std::string>(path);
 }
 
-void writeCloudAs(const std::string& path, const core::PointCloud& cloud,
-                  const std::string& encoding) {
+io::CloudWriteOptions writeOptions(const std::string& encoding) {
   if (encoding != "ascii" && encoding != "binary") {
     throw core::Error("--encoding: '" + encoding + "' is not ascii or binary");
   }
-  const bool ascii = encoding == "ascii";
-  const std::string ext = extensionOf(path);
-  if (ext == ".pcd") {
-    io::writePcd(path, cloud, {ascii ? io::PcdEncoding::kAscii : io::PcdEncoding::kBinary});
-  } else if (ext == ".ply") {
-    io::writePly(path, cloud,
-                 {ascii ? io::PlyEncoding::kAscii : io::PlyEncoding::kBinaryLittleEndian});
-  } else {
-    io::writeCloud(path, cloud);
-  }
+  return {.ascii = encoding == "ascii"};
 }
 
 void convertCloud(const ConvertOptions& o) {
@@ -73,7 +60,7 @@ void convertCloud(const ConvertOptions& o) {
     throw core::Error("output '" + o.output + "': a scan converts to .bin, .pcd or .ply");
   }
   const core::PointCloud cloud = io::readCloud(o.input);
-  writeCloudAs(o.output, cloud, o.encoding);
+  io::writeCloud(o.output, cloud, writeOptions(o.encoding));
   fmt::print("{} points: {} -> {}\n", cloud.size(), o.input, o.output);
 }
 
@@ -96,7 +83,7 @@ void convertBagClouds(const ConvertOptions& o) {
   core::ProgressBar progress("convert", reader.size(), "scans");
   while (auto scan = reader.next()) {
     const auto name = fmt::format("{:06}.{}", stamps.size(), o.cloud_format);
-    writeCloudAs((folder / name).string(), scan->cloud, o.encoding);
+    io::writeCloud((folder / name).string(), scan->cloud, writeOptions(o.encoding));
     stamps.push_back(scan->stamp);
     progress.update(stamps.size());
   }

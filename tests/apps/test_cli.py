@@ -132,6 +132,33 @@ class Convert(unittest.TestCase):
         self.assertGreater(len(lines), 100)
         self.assertEqual(len(lines[0].split()), 8)
 
+    def make_bag(self):
+        script = os.path.join(SOURCE, "tests", "io", "make_test_bag.py")
+        subprocess.run(["/usr/bin/python3", script, self.dir], check=True, timeout=120)
+        return self.path("clouds.bag")
+
+    def test_bag_clouds_to_scan_folder(self):
+        bag = self.make_bag()
+        run("convert", bag, self.path("scans"), "--topic", "/velodyne_points",
+            "--cloud-format", "pcd", "--encoding", "ascii")
+        names = sorted(os.listdir(self.path("scans")))
+        self.assertEqual(names, ["000000.pcd", "000001.pcd", "000002.pcd", "times.txt"])
+        with open(self.path("scans/times.txt")) as f:
+            self.assertEqual(len(f.read().split()), 3)
+        with open(self.path("scans/000000.pcd")) as f:
+            header = f.read()
+        self.assertIn("FIELDS x y z intensity", header)
+        self.assertIn("DATA ascii", header)
+
+    def test_bag_odometry_to_kitti(self):
+        bag = self.make_bag()
+        run("convert", bag, self.path("odom.txt"), "--topic", "/odom", "--to", "kitti")
+        with open(self.path("odom.txt")) as f:
+            rows = [list(map(float, l.split())) for l in f if l.strip()]
+        self.assertEqual(len(rows), 3)
+        self.assertAlmostEqual(rows[2][3], 2.0)   # x of pose k = 2
+        self.assertAlmostEqual(rows[2][7], 4.0)   # y = 2k
+
     def test_bag_without_topic_lists_topics(self):
         bag = os.path.join(DATA, "rosbags", "evo_ROS_example.bag")
         code, _, err = run("convert", bag, self.path("x.tum"), check=False)
