@@ -44,4 +44,8 @@ struct AppConfig {
   }
 };
 
+/// Checks the values the YAML types cannot (names from a fixed set, ranges);
+/// throws core::FileError naming `source` and the dotted key.
+void validate(const AppConfig& config, const std::string& source);
+
 }  // namespace dcl::apps

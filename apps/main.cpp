@@ -35,6 +35,7 @@ dcl::apps::AppConfig preloadConfig(int argc, char** argv) {
     dcl::io::applyYaml(dcl::io::readConfigText(*path), config, *path);
   }
   if (const auto level = findOption(argc, argv, "--log-level")) config.log_level = *level;
+  dcl::apps::validate(config, findOption(argc, argv, "--config").value_or("<defaults>"));
   dcl::core::setupLogging(config.log_level);
   return config;
 }

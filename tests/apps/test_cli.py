@@ -205,6 +205,19 @@ class Config(unittest.TestCase):
         self.assertIn("eval.kitti_step", err)
 
 
+    def test_value_outside_its_set_is_named(self):
+        with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:
+            f.write("eval:\n  alignment: affine\n")
+        try:
+            code, _, err = run("config", "--dump", "--config", f.name, check=False)
+        finally:
+            os.unlink(f.name)
+        self.assertNotEqual(code, 0)
+        self.assertIn("eval.alignment", err)
+        self.assertIn("affine", err)
+        self.assertIn(f.name, err)
+
+
 class Errors(unittest.TestCase):
     """Bad input: a non-zero exit and one line naming the file and the problem."""
 

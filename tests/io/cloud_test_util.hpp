@@ -1,7 +1,7 @@
 #pragma once
 
-// Helpers for the point-cloud reader tests: temporary files, byte edits and
-// checks on the message of a core::FileError.
+// Helpers for the point-cloud reader tests: clouds with every channel, and
+// bit-exact comparison.
 
 #include <filesystem>
 #include <fstream>
@@ -11,70 +11,11 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
-#include <dcl/core/error.hpp>
 #include <dcl/core/point_cloud.hpp>
 
+#include "io_test_util.hpp"
+
 namespace dcl::io::test {
-
-/// This process's scratch folder (per process: ctest runs tests in parallel).
-inline std::filesystem::path scratchRoot() {
-  return std::filesystem::path(::testing::TempDir()) /
-         ("dcl_io_clouds_" + std::to_string(::getpid()));
-}
-
-/// Removes the scratch folder when the test program ends.
-class ScratchCleanup : public ::testing::Environment {
- public:
-  void TearDown() override {
-    std::error_code ec;
-    std::filesystem::remove_all(scratchRoot(), ec);
-  }
-};
-inline ::testing::Environment* const kScratchCleanup =
-    ::testing::AddGlobalTestEnvironment(new ScratchCleanup);
-
-/// A fresh folder for one test, removed and recreated.
-inline std::filesystem::path freshDir(const std::string& name) {
-  const auto dir = scratchRoot() / name;
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
-
-/// Writes `bytes` to `path` as they are.
-inline void writeBytes(const std::filesystem::path& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-}
-
-/// The whole content of `path`.
-inline std::string readBytes(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
-}
-
-/// Success when `text` contains `part`.
-inline ::testing::AssertionResult contains(const std::string& text, const std::string& part) {
-  if (text.find(part) != std::string::npos) return ::testing::AssertionSuccess();
-  return ::testing::AssertionFailure() << "'" << text << "' lacks '" << part << "'";
-}
-
-/// The message of the core::FileError that `f` throws; a test failure (and "") if
-/// it throws nothing or something else.
-template <class F>
-std::string fileError(F&& f) {
-  try {
-    f();
-  } catch (const core::FileError& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    ADD_FAILURE() << "expected core::FileError, got: " << e.what();
-    return {};
-  }
-  ADD_FAILURE() << "expected core::FileError, nothing thrown";
-  return {};
-}
-
 /// A cloud with every channel: point i at (i/4, -i/8, 3 + i/16), intensity 2i,
 /// time i/1024, ring i % 64, plus a NaN point and extreme floats.
 inline core::PointCloud fullCloud(std::size_t n) {

@@ -5,10 +5,11 @@
 #include <vector>
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <dcl/core/error.hpp>
 #include <dcl/io/config.hpp>
+
+#include "io_test_util.hpp"
 
 namespace dcl::io {
 namespace {
@@ -75,20 +76,6 @@ struct RootConfig {
 
   bool operator==(const RootConfig&) const = default;
 };
-
-template <class Apply>
-std::string errorOf(Apply&& apply) {
-  try {
-    apply();
-  } catch (const core::FileError& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    ADD_FAILURE() << "not a FileError: " << e.what();
-    return {};
-  }
-  ADD_FAILURE() << "no error thrown";
-  return {};
-}
 
 TEST(Config, OverridesOnlyTheKeysGiven) {
   RootConfig config;
@@ -203,7 +190,7 @@ TEST(Config, RejectsBadDocumentsNamingLineAndKey) {
   for (const auto& bad : badDocuments()) {
     RootConfig config;
     config.odometry.max_iterations = 99;
-    const std::string message = errorOf([&] { applyYaml(bad.yaml, config, "test.yaml"); });
+    const std::string message = test::fileError([&] { applyYaml(bad.yaml, config, "test.yaml"); });
     EXPECT_EQ(message.rfind("test.yaml", 0), 0u) << bad.name << ": " << message;
     for (const auto& part : bad.expected) {
       EXPECT_NE(message.find(part), std::string::npos) << bad.name << ": " << message;
@@ -262,22 +249,19 @@ TEST(Config, DumpCommentsEveryField) {
 }
 
 TEST(Config, LoadsFromFile) {
-  const fs::path dir = fs::temp_directory_path() / ("dcl_io_config_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  const std::string path = (dir / "config.yaml").string();
-  std::ofstream(path) << "odometry:\n  threads: 8\n";
+  const test::TempDir dir;
+  const std::string path = dir.write("config.yaml", "odometry:\n  threads: 8\n");
   RootConfig config;
   loadConfig(path, config);
   EXPECT_EQ(config.odometry.threads, 8u);
 
   std::ofstream(path, std::ios::trunc) << "odometry:\n  threads: eight\n";
-  const std::string message = errorOf([&] { loadConfig(path, config); });
+  const std::string message = test::fileError([&] { loadConfig(path, config); });
   EXPECT_NE(message.find(path + ":2: field 'odometry.threads'"), std::string::npos) << message;
   EXPECT_EQ(config.odometry.threads, 8u);
 
-  const std::string missing = (dir / "missing.yaml").string();
-  EXPECT_NE(errorOf([&] { loadConfig(missing, config); }).find(missing), std::string::npos);
-  fs::remove_all(dir);
+  const std::string missing = dir.file("missing.yaml");
+  EXPECT_NE(test::fileError([&] { loadConfig(missing, config); }).find(missing), std::string::npos);
 }
 
 TEST(Config, TruncatedDumpLoadsOrFailsCleanly) {

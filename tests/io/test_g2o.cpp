@@ -8,10 +8,11 @@
 #include <vector>
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <dcl/core/error.hpp>
 #include <dcl/io/g2o.hpp>
+
+#include "io_test_util.hpp"
 
 namespace dcl::io {
 namespace {
@@ -19,33 +20,6 @@ namespace {
 namespace fs = std::filesystem;
 
 const std::string kGraphs = std::string(DCL_DATA_DIR) + "/pose_graphs";
-
-/// A scratch folder for one test, removed afterwards.
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() /
-            ("dcl_io_g2o_" + std::string(info->name()) + "_" + std::to_string(::getpid()));
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-
-  [[nodiscard]] std::string file(const std::string& name) const { return (path_ / name).string(); }
-
-  [[nodiscard]] std::string write(const std::string& name, const std::string& content) const {
-    std::ofstream(file(name), std::ios::binary) << content;
-    return file(name);
-  }
-
- private:
-  fs::path path_;
-};
 
 /// What a graph file holds, counted from its tags without the reader.
 struct TagCount {
@@ -92,20 +66,6 @@ std::vector<std::string> allGraphFiles() {
   return files;
 }
 
-template <class Read>
-std::string errorOf(Read&& read) {
-  try {
-    read();
-  } catch (const core::FileError& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    ADD_FAILURE() << "not a FileError: " << e.what();
-    return {};
-  }
-  ADD_FAILURE() << "no error thrown";
-  return {};
-}
-
 void expectSamePose(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b,
                     const std::string& what) {
   const double scale = std::max(1.0, a.translation().norm());
@@ -140,7 +100,7 @@ bool isKnownCorrupt(const std::string& path) {
 }
 
 TEST(G2o, EveryDataFileLoadsWithItsCountsAndRoundTrips) {
-  TempDir dir;
+  test::TempDir dir;
   const auto files = allGraphFiles();
   ASSERT_EQ(files.size(), 368u);  // 369 files in the folder, one is PROVENANCE.md
   for (const auto& path : files) {
@@ -232,7 +192,7 @@ TEST(G2o, InformationKeptExactlyInTangentOrder) {
 }
 
 TEST(G2o, PlanarInformationOrdersOfG2oAndToro) {
-  TempDir dir;
+  test::TempDir dir;
   const std::string g2o = dir.write("a.g2o", "EDGE_SE2 0 1 1 2 0.1 11 12 13 22 23 33\n");
   const std::string toro = dir.write("a.graph", "EDGE2 0 1 1 2 0.1 11 12 22 33 13 23\n");
   for (const auto& path : {g2o, toro}) {
@@ -257,7 +217,7 @@ TEST(G2o, PlanarInformationOrdersOfG2oAndToro) {
 }
 
 TEST(G2o, ToroEulerAnglesAndMissingInformation) {
-  TempDir dir;
+  test::TempDir dir;
   const std::string path = dir.write("a.graph",
                                      "VERTEX3 0 1 2 3 0.1 0.2 0.3\n"
                                      "VERTEX3 1 0 0 0 0 0 0\n"
@@ -331,7 +291,7 @@ TEST(G2o, EdgesOnlyGraphsGetChainedOdometry) {
 }
 
 TEST(G2o, ChainingHandlesGapsReversedEdgesAndComponents) {
-  TempDir dir;
+  test::TempDir dir;
   const std::string info = " 1 0 0 1 0 1\n";
   const std::string path = dir.write("gaps.g2o",
                                      "EDGE_SE2 0 1 1 0 0" + info +  // odometry
@@ -419,7 +379,7 @@ TEST(G2o, DuplicatedFixAndEquivLinesAreKept) {
   const G2oGraph w100 = readG2o(kGraphs + "/2d/w100.graph");
   EXPECT_EQ(w100.equivalences.size(), 40u);
   EXPECT_EQ(w100.equivalences.front(), (std::pair<std::uint64_t, std::uint64_t>{21, 1}));
-  TempDir dir;
+  test::TempDir dir;
   const std::string path = dir.write("fix.g2o", "VERTEX_SE3:QUAT 3 0 0 0 0 0 0 1\nFIX 3\n");
   EXPECT_EQ(readG2o(path).fixed, std::set<std::uint64_t>{3});
 }
@@ -429,7 +389,7 @@ TEST(G2o, KnownCorruptDataFileNamesLineAndTag) {
       kGraphs +
       "/multi_robot_outliers/robust_distributed_mapper/"
       "pairwise_consistency_maximization/spoiled/simulation/example_2robots/1.g2o";
-  const std::string message = errorOf([&] { readG2o(path); });
+  const std::string message = test::fileError([&] { readG2o(path); });
   EXPECT_NE(message.find(path + ":16:"), std::string::npos) << message;
   EXPECT_NE(message.find("unknown tag '0410268'"), std::string::npos) << message;
   G2oReadOptions options;
@@ -478,21 +438,21 @@ std::vector<Corrupt> corruptGraphs() {
 }
 
 TEST(G2o, CorruptFilesNameFileLineAndField) {
-  TempDir dir;
+  test::TempDir dir;
   for (const auto& c : corruptGraphs()) {
     const std::string path = dir.write(c.name + ".g2o", c.content);
-    const std::string message = errorOf([&] { readG2o(path); });
+    const std::string message = test::fileError([&] { readG2o(path); });
     EXPECT_NE(message.find(path), std::string::npos) << c.name << ": " << message;
     for (const auto& part : c.expected) {
       EXPECT_NE(message.find(part), std::string::npos) << c.name << ": " << message;
     }
   }
-  EXPECT_NE(errorOf([&] { readG2o(dir.file("missing.g2o")); }).find("missing.g2o"),
+  EXPECT_NE(test::fileError([&] { readG2o(dir.file("missing.g2o")); }).find("missing.g2o"),
             std::string::npos);
 }
 
 TEST(G2o, TruncatedOrCorruptedAnywhereNeverCrashes) {
-  TempDir dir;
+  test::TempDir dir;
   const std::string text = kVertex + "VERTEX_SE3:QUAT 1 0.3 0 0 0 0 0 1\n" + kEdge;
   const std::string path = dir.file("fuzz.g2o");
   const auto check = [&](const std::string& content) {

@@ -5,10 +5,11 @@
 #include <vector>
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <dcl/core/error.hpp>
 #include <dcl/io/pose_file.hpp>
+
+#include "io_test_util.hpp"
 
 namespace dcl::io {
 namespace {
@@ -22,34 +23,6 @@ const std::string kKitti05 = kData + "/trajectories/kitti_gt_poses/05.txt";
 const std::string kKitti08 = kData + "/trajectories/kitti_gt_poses/08.txt";
 const std::string kTum = kData + "/trajectories/evo/freiburg1_xyz-groundtruth.txt";
 const std::string kCalib = kData + "/lidar_scans/kitti_00/calib.txt";
-
-/// A scratch folder for one test, removed afterwards.
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() /
-            ("dcl_io_poses_" + std::string(info->name()) + "_" + std::to_string(::getpid()));
-    fs::create_directories(path_);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-
-  [[nodiscard]] std::string file(const std::string& name) const { return (path_ / name).string(); }
-
-  /// Writes `content` to `name` and returns its path.
-  [[nodiscard]] std::string write(const std::string& name, const std::string& content) const {
-    std::ofstream(file(name), std::ios::binary) << content;
-    return file(name);
-  }
-
- private:
-  fs::path path_;
-};
 
 std::vector<std::string> lines(const std::string& path) {
   std::ifstream in(path);
@@ -70,21 +43,6 @@ std::vector<double> numbersOf(const std::string& line) {
   std::vector<double> v;
   for (double x; in >> x;) v.push_back(x);
   return v;
-}
-
-/// Runs `read` and returns the FileError's message; fails the test if none is thrown.
-template <class Read>
-std::string errorOf(Read&& read) {
-  try {
-    read();
-  } catch (const core::FileError& e) {
-    return e.what();
-  } catch (const std::exception& e) {
-    ADD_FAILURE() << "not a FileError: " << e.what();
-    return {};
-  }
-  ADD_FAILURE() << "no error thrown";
-  return {};
 }
 
 /// Same stamps and translations to 1e-12; rotations to `rotation_tol` (a TUM
@@ -162,10 +120,10 @@ TEST(PoseFiles, EveryEvoTrajectoryLoads) {
 }
 
 TEST(KittiPoses, TimesCountMismatchNamesBothFiles) {
-  TempDir dir;
+  test::TempDir dir;
   const std::string poses = dir.write("poses.txt", head(kKitti00, 5));
   const std::string times = dir.write("times.txt", head(kKitti00Times, 4));
-  const std::string message = errorOf([&] { readKittiPoses(poses, times); });
+  const std::string message = test::fileError([&] { readKittiPoses(poses, times); });
   EXPECT_NE(message.find(poses), std::string::npos) << message;
   EXPECT_NE(message.find(times), std::string::npos) << message;
   EXPECT_NE(message.find("4 time stamps"), std::string::npos) << message;
@@ -173,7 +131,7 @@ TEST(KittiPoses, TimesCountMismatchNamesBothFiles) {
 }
 
 TEST(KittiPoses, RoundTripWithTimes) {
-  TempDir dir;
+  test::TempDir dir;
   const auto original = readKittiPoses(kKitti00, kKitti00Times);
   writePoses(dir.file("out.txt"), PoseFormat::kitti, original, dir.file("out_times.txt"));
   const auto back = readPoses(dir.file("out.txt"), PoseFormat::kitti, dir.file("out_times.txt"));
@@ -200,7 +158,7 @@ TEST(TumPoses, ReadsFreiburgGroundTruth) {
 }
 
 TEST(TumPoses, RoundTripAndConversionFromKitti) {
-  TempDir dir;
+  test::TempDir dir;
   const auto tum = readTumPoses(kTum);
   writeTumPoses(dir.file("tum.txt"), tum);
   expectSamePoses(tum, readTumPoses(dir.file("tum.txt")));
@@ -247,10 +205,10 @@ std::vector<Corrupt> corruptKitti() {
 }
 
 TEST(KittiPoses, CorruptFilesNameFileLineAndField) {
-  TempDir dir;
+  test::TempDir dir;
   for (const auto& c : corruptKitti()) {
     const std::string path = dir.write(c.name + ".txt", c.content);
-    const std::string message = errorOf([&] { readKittiPoses(path); });
+    const std::string message = test::fileError([&] { readKittiPoses(path); });
     EXPECT_NE(message.find(path), std::string::npos) << c.name << ": " << message;
     for (const auto& part : c.expected) {
       EXPECT_NE(message.find(part), std::string::npos) << c.name << ": " << message;
@@ -259,7 +217,7 @@ TEST(KittiPoses, CorruptFilesNameFileLineAndField) {
 }
 
 TEST(KittiPoses, CorruptTimesFile) {
-  TempDir dir;
+  test::TempDir dir;
   const std::string poses = dir.write("poses.txt", kRow0 + kRow1);
   const std::vector<Corrupt> cases = {
       {"empty", "", {":1:", "no time stamps"}},
@@ -269,7 +227,7 @@ TEST(KittiPoses, CorruptTimesFile) {
   };
   for (const auto& c : cases) {
     const std::string times = dir.write(c.name + ".txt", c.content);
-    const std::string message = errorOf([&] { readKittiPoses(poses, times); });
+    const std::string message = test::fileError([&] { readKittiPoses(poses, times); });
     EXPECT_NE(message.find(times), std::string::npos) << c.name << ": " << message;
     for (const auto& part : c.expected) {
       EXPECT_NE(message.find(part), std::string::npos) << c.name << ": " << message;
@@ -278,7 +236,7 @@ TEST(KittiPoses, CorruptTimesFile) {
 }
 
 TEST(TumPoses, CorruptFilesNameFileLineAndField) {
-  TempDir dir;
+  test::TempDir dir;
   const std::string good = "1305031098.6659 1.3563 0.6305 1.6380 0.6132 0.5962 -0.3311 -0.3986\n";
   const std::vector<Corrupt> cases = {
       {"empty", "", {":1:", "no poses"}},
@@ -294,7 +252,7 @@ TEST(TumPoses, CorruptFilesNameFileLineAndField) {
   };
   for (const auto& c : cases) {
     const std::string path = dir.write(c.name + ".txt", c.content);
-    const std::string message = errorOf([&] { readTumPoses(path); });
+    const std::string message = test::fileError([&] { readTumPoses(path); });
     EXPECT_NE(message.find(path), std::string::npos) << c.name << ": " << message;
     for (const auto& part : c.expected) {
       EXPECT_NE(message.find(part), std::string::npos) << c.name << ": " << message;
@@ -304,15 +262,15 @@ TEST(TumPoses, CorruptFilesNameFileLineAndField) {
 
 TEST(PoseFiles, MissingFileIsAFileError) {
   const std::string path = kData + "/trajectories/no_such_file.txt";
-  EXPECT_NE(errorOf([&] { readKittiPoses(path); }).find(path), std::string::npos);
-  EXPECT_NE(errorOf([&] { readTumPoses(path); }).find(path), std::string::npos);
-  EXPECT_NE(errorOf([&] { readKittiCalib(path); }).find(path), std::string::npos);
+  EXPECT_NE(test::fileError([&] { readKittiPoses(path); }).find(path), std::string::npos);
+  EXPECT_NE(test::fileError([&] { readTumPoses(path); }).find(path), std::string::npos);
+  EXPECT_NE(test::fileError([&] { readKittiCalib(path); }).find(path), std::string::npos);
 }
 
 /// Every cut and every one-byte corruption of a small file either loads or throws a
 /// FileError that names the file and a line -- never anything else.
 template <class Read>
-void fuzzText(const TempDir& dir, const std::string& text, Read&& read) {
+void fuzzText(const test::TempDir& dir, const std::string& text, Read&& read) {
   const std::string path = dir.file("fuzz.txt");
   const auto check = [&](const std::string& content) {
     { std::ofstream(path, std::ios::binary | std::ios::trunc) << content; }
@@ -338,7 +296,7 @@ void fuzzText(const TempDir& dir, const std::string& text, Read&& read) {
 }
 
 TEST(PoseFiles, TruncatedOrCorruptedAnywhereNeverCrashes) {
-  TempDir dir;
+  test::TempDir dir;
   fuzzText(dir, head(kKitti00, 2), [](const std::string& p) { readKittiPoses(p); });
   fuzzText(dir, head(kTum, 5), [](const std::string& p) { readTumPoses(p); });
 }
@@ -360,7 +318,7 @@ TEST(KittiCalib, ReadsSequenceCalibration) {
 }
 
 TEST(KittiCalib, CorruptFiles) {
-  TempDir dir;
+  test::TempDir dir;
   const std::string p0 = "P0: 1 0 0 0 0 1 0 0 0 0 1 0\n";
   const std::string tr = "Tr: 0 -1 0 0.1 0 0 -1 0.2 1 0 0 0.3\n";
   const std::vector<Corrupt> cases = {
@@ -374,7 +332,7 @@ TEST(KittiCalib, CorruptFiles) {
   };
   for (const auto& c : cases) {
     const std::string path = dir.write(c.name + ".txt", c.content);
-    const std::string message = errorOf([&] { readKittiCalib(path); });
+    const std::string message = test::fileError([&] { readKittiCalib(path); });
     EXPECT_NE(message.find(path), std::string::npos) << c.name << ": " << message;
     for (const auto& part : c.expected) {
       EXPECT_NE(message.find(part), std::string::npos) << c.name << ": " << message;
