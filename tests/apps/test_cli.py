@@ -83,6 +83,44 @@ class Metrics(unittest.TestCase):
         _, out, _ = run("eval", "ate", *args, "--json")
         self.assertMatchesReference(json.loads(out), reference("ate", *args))
 
+    def test_multi_robot_protocol_one_alignment_for_all(self):
+        """KITTI 00 split into three robots; the alignment fitted on robot 1 serves all."""
+        sys.path.insert(0, os.path.dirname(REFERENCE))
+        import numpy as np
+        import reference_metrics as ref
+        _, gt = ref.read_kitti(os.path.join(EVO, "KITTI_00_gt.txt"))
+        _, est = ref.read_kitti(os.path.join(EVO, "KITTI_00_ORB.txt"))
+        cuts = [(0, 1500), (1500, 3000), (3000, len(gt))]
+        with tempfile.TemporaryDirectory() as tmp:
+            args = []
+            for i, (a, b) in enumerate(cuts):
+                for name, poses in (("gt", gt), ("est", est)):
+                    path = os.path.join(tmp, f"{name}{i}.txt")
+                    with open(path, "w") as f:
+                        for p in poses[a:b]:
+                            f.write(" ".join(repr(v) for v in p[:3, :].reshape(-1)) + "\n")
+                    args += [f"--{name}", path]
+            _, out, _ = run("eval", "ate", *args, "--format", "kitti", "--align", "se3",
+                            "--reference-robot", "1", "--json")
+        ours = json.loads(out)
+        a, b = cuts[1]
+        x = np.array([p[:3, 3] for p in est[a:b]]).T
+        y = np.array([p[:3, 3] for p in gt[a:b]]).T
+        r, t, _ = ref.umeyama(x, y, False)
+        all_errors = []
+        for i, (a, b) in enumerate(cuts):
+            errors = [np.linalg.norm(r @ e[:3, 3] + t - g[:3, 3])
+                      for e, g in zip(est[a:b], gt[a:b])]
+            all_errors += errors
+            expected = ref.statistics(errors)["rmse"]
+            got = ours["robots"][i]["translation_m"]["rmse"]
+            self.assertAlmostEqual(got / expected, 1.0, delta=1e-6, msg=f"robot {i}")
+        pooled = ref.statistics(all_errors)
+        self.assertEqual(ours["pooled"]["translation_m"]["count"], len(gt))
+        self.assertAlmostEqual(ours["pooled"]["translation_m"]["rmse"] / pooled["rmse"], 1.0,
+                               delta=1e-6)
+        self.assertEqual(ours["reference_robot"], 1)
+
     def test_human_readable_table(self):
         _, out, _ = run("eval", "ate", "--gt", os.path.join(EVO, "KITTI_00_gt.txt"),
                         "--est", os.path.join(EVO, "KITTI_00_ORB.txt"), "--format", "kitti",
