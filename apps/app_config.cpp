@@ -1,5 +1,6 @@
 #include "app_config.hpp"
 
+#include <cstdlib>
 #include <functional>
 
 #include <dcl/core/error.hpp>
@@ -21,6 +22,11 @@ void checkField(const std::string& source, const char* key, const std::function<
 }
 
 }  // namespace
+
+std::string defaultDataDir() {
+  if (const char* env = std::getenv("DCL_DATA_DIR")) return env;
+  return DCL_DEFAULT_DATA_DIR;
+}
 
 void validate(const AppConfig& config, const std::string& source) {
   checkField(source, "log_level", [&] { core::setLogLevel(config.log_level); });

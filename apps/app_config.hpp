@@ -44,6 +44,10 @@ struct AppConfig {
   }
 };
 
+/// The shared data folder (KITTI ground truth, test data): the DCL_DATA_DIR
+/// environment variable, else the folder configured at build time.
+std::string defaultDataDir();
+
 /// Checks the values the YAML types cannot (names from a fixed set, ranges);
 /// throws core::FileError naming `source` and the dotted key.
 void validate(const AppConfig& config, const std::string& source);

@@ -25,4 +25,10 @@ void addVersionCommand(CLI::App& app);
 /// `demo`: the built-in default run.
 void addDemoCommand(CLI::App& app, const AppConfig& config);
 
+/// `simulate`: a simulated dataset from a preset (`--export` kitti or bag), or `--preview` of one.
+void addSimulateCommand(CLI::App& app);
+
+/// `bench sim` (on the `bench` subcommand): the scan stream of a dataset, timed.
+void addBenchSimCommand(CLI::App& bench);
+
 }  // namespace dcl::apps

@@ -54,6 +54,10 @@ int run(int argc, char** argv) {
   dcl::apps::addConfigCommand(app, config);
   dcl::apps::addVersionCommand(app);
   dcl::apps::addDemoCommand(app, config);
+  dcl::apps::addSimulateCommand(app);
+  auto* bench = app.add_subcommand("bench", "benchmarks of the system's parts");
+  bench->require_subcommand(1);
+  dcl::apps::addBenchSimCommand(*bench);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -305,5 +305,115 @@ class Errors(unittest.TestCase):
         self.assertIn(".xyz", err)
 
 
+class Simulate(unittest.TestCase):
+    """dcl-slam simulate: small dataset folders, exports other tools read, previews."""
+
+    def setUp(self):
+        self.tmp = tempfile.TemporaryDirectory()
+        self.dir = self.tmp.name
+
+    def tearDown(self):
+        self.tmp.cleanup()
+
+    def path(self, *names):
+        return os.path.join(self.dir, *names)
+
+    def folder_files(self, folder):
+        """{relative path: size} of every file under folder."""
+        files = {}
+        for root, _, names in os.walk(folder):
+            for name in names:
+                full = os.path.join(root, name)
+                files[os.path.relpath(full, folder)] = os.path.getsize(full)
+        return files
+
+    def simulate_short(self, out, *extra):
+        """One demo robot cut to 4 scans: seconds, not minutes."""
+        return run("simulate", "--preset", "demo", "--robots", "1", "--max-scans", "4",
+                   "--out", out, *extra)
+
+    def test_demo_dataset_is_kilobytes_without_scans(self):
+        _, out, _ = run("simulate", "--preset", "demo", "--out", self.path("demo"))
+        files = self.folder_files(self.path("demo"))
+        self.assertIn("dataset.yaml", files)
+        self.assertEqual(sorted(f for f in files if f.endswith(".tum")),
+                         ["ground_truth/a.tum", "ground_truth/b.tum", "ground_truth/c.tum"])
+        self.assertFalse([f for f in files if f.endswith(".bin") or f.endswith(".bag")])
+        self.assertLess(sum(files.values()), 1_000_000)
+        self.assertIn("robot", out)
+        self.assertIn("scans", out)
+        with open(self.path("demo", "dataset.yaml")) as f:
+            text = f.read()
+        self.assertIn("type: sim", text)
+        self.assertIn("ground_truth: T_world_sensor", text)
+
+    def test_kitti_export_is_read_by_convert(self):
+        _, out, _ = self.simulate_short(self.path("ds"), "--export", "kitti")
+        velodyne = self.path("ds", "kitti", "a", "velodyne")
+        self.assertEqual(sorted(os.listdir(velodyne)), [f"{i:06}.bin" for i in range(4)])
+        with open(self.path("ds", "kitti", "a", "times.txt")) as f:
+            self.assertEqual(len(f.read().split()), 4)
+        self.assertTrue(os.path.exists(self.path("ds", "kitti", "a", "poses.txt")))
+        self.assertTrue(os.path.exists(self.path("ds", "kitti", "dataset.yaml")))
+        scan = os.path.join(velodyne, "000003.bin")
+        _, converted, _ = run("convert", scan, self.path("scan.pcd"))
+        points = os.path.getsize(scan) // 16
+        self.assertGreater(points, 5000)
+        self.assertIn(f"{points} points", converted)
+
+    def test_same_seed_gives_bit_identical_scans(self):
+        self.simulate_short(self.path("one"), "--seed", "5", "--export", "kitti")
+        self.simulate_short(self.path("two"), "--seed", "5", "--export", "kitti")
+        self.simulate_short(self.path("three"), "--seed", "6", "--export", "kitti")
+        scan = os.path.join("kitti", "a", "velodyne", "000002.bin")
+        with open(self.path("one", scan), "rb") as a, open(self.path("two", scan), "rb") as b, \
+                open(self.path("three", scan), "rb") as c:
+            one, two, three = a.read(), b.read(), c.read()
+        self.assertEqual(one, two)
+        self.assertNotEqual(one, three)
+
+    def test_bag_export_is_listed_by_convert(self):
+        self.simulate_short(self.path("ds"), "--export", "bag")
+        bag = self.path("ds", "bag", "a", "scans.bag")
+        run("convert", bag, self.path("scans"), "--topic", "/points")
+        self.assertEqual(len([n for n in os.listdir(self.path("scans")) if n.endswith(".bin")]), 4)
+        run("convert", bag, self.path("gt.tum"), "--topic", "/ground_truth")
+        with open(self.path("gt.tum")) as f:
+            self.assertEqual(len([l for l in f if l.strip() and not l.startswith("#")]), 4)
+
+    def test_preview_writes_two_pngs(self):
+        self.simulate_short(self.path("ds"))
+        run("simulate", "--preview", self.path("ds"))
+        for name in ("preview_world.png", "preview_scan.png"):
+            with open(self.path("ds", name), "rb") as f:
+                self.assertEqual(f.read(8), b"\x89PNG\r\n\x1a\n", name)
+
+    def test_unknown_preset_lists_the_presets(self):
+        code, _, err = run("simulate", "--preset", "mars", "--out", self.path("x"), check=False)
+        self.assertEqual(code, 1)
+        self.assertIn("mars", err)
+        for name in ("kitti00-3", "kitti05-3", "kitti08-2", "campus-3", "campus-9", "aliasing-3",
+                     "demo"):
+            self.assertIn(name, err)
+        self.assertEqual(len(err.strip().splitlines()), 1)
+        self.assertFalse(os.path.exists(self.path("x")))
+
+    def test_help_lists_presets(self):
+        for args in (["simulate", "--help"], ["bench", "sim", "--help"]):
+            with self.subTest(args=args):
+                code, out, _ = run(*args, check=False)
+                self.assertEqual(code, 0)
+                self.assertIn("Usage", out)
+        self.assertIn("kitti05-3", run("simulate", "--help")[1])
+
+    def test_bench_sim_reports_rate(self):
+        self.simulate_short(self.path("ds"))
+        _, out, _ = run("bench", "sim", "--dataset", self.path("ds"), "--threads", "2", "--json")
+        result = json.loads(out)
+        self.assertEqual(result["scans"], 4)
+        self.assertGreater(result["scans_per_s"], 0)
+        self.assertAlmostEqual(result["realtime_factor"], result["scans_per_s"] / 10.0)
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -1,0 +1,121 @@
+#pragma once
+
+/// The dataset folder (DESIGN.md §3): a `dataset.yaml` that names the sensor,
+/// the frame conventions, the simulated world (for simulated datasets) and,
+/// per robot, where its scans come from and where its ground truth is.
+///
+/// Conventions of every dataset (also written into each dataset.yaml):
+/// - ground truth is T_world_sensor in a TUM file (`t x y z qx qy qz qw`), one
+///   world frame shared by all robots of the dataset;
+/// - stamps (of scans and ground truth) are seconds since the robot's own start;
+///   `start_time` places that start on the swarm's common clock;
+/// - scan points are in the sensor frame at the moment each was fired;
+/// - metres, seconds, radians.
+/// A robot's odometry frame is its sensor frame at its first scan.
+///
+/// Paths inside dataset.yaml are relative to the dataset folder.
+
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <dcl/core/trajectory.hpp>
+
+namespace dcl::io {
+
+/// The dataset.yaml format this code reads and writes.
+inline constexpr int kDatasetFormatVersion = 1;
+
+/// The file name of a dataset's description inside its folder.
+inline constexpr std::string_view kDatasetFileName = "dataset.yaml";
+
+/// Where a robot's scans come from.
+enum class ScanSourceType {
+  sim,    ///< regenerated on demand by the simulator (nothing on disk)
+  kitti,  ///< a folder of KITTI `NNNNNN.bin` scans and a times file
+  bag,    ///< a ROS1 bag topic of sensor_msgs/PointCloud2
+};
+
+/// "sim", "kitti" or "bag".
+std::string_view toString(ScanSourceType type);
+
+/// The type called `name`; none for an unknown name.
+std::optional<ScanSourceType> parseScanSourceType(std::string_view name);
+
+/// A robot's scans: the type and the fields that type uses.
+struct ScanSourceSpec {
+  ScanSourceType type = ScanSourceType::sim;  ///< default: simulated
+  std::string folder{};  ///< kitti: folder of NNNNNN.bin (relative); default none
+  std::string times{};   ///< kitti: stamps one a line, s since start (relative); default none
+  std::string file{};    ///< bag: the bag file (relative); default none
+  std::string topic{};   ///< bag: the sensor_msgs/PointCloud2 topic; default none
+};
+
+/// One robot of a dataset.
+struct RobotSpec {
+  std::string name{};          ///< unique within the dataset, e.g. "a"
+  ScanSourceSpec scans{};      ///< where its scans come from
+  std::string ground_truth{};  ///< TUM file of T_world_sensor (relative); "" when none
+  double start_time = 0.0;     ///< s, the robot's start on the swarm clock; default 0
+};
+
+/// The kinds of procedural world the simulator builds.
+enum class WorldKind {
+  city,      ///< urban blocks along the routes
+  campus,    ///< open campus
+  aliasing,  ///< repeated identical blocks (perceptual aliasing)
+};
+
+/// "city", "campus" or "aliasing".
+std::string_view toString(WorldKind kind);
+
+/// The kind called `name`; none for an unknown name.
+std::optional<WorldKind> parseWorldKind(std::string_view name);
+
+/// What a simulated dataset regenerates its world and scans from.
+struct SimSpec {
+  WorldKind world = WorldKind::city;  ///< world generator; default city
+  std::uint64_t seed = 1;             ///< world and scan noise derive from it; default 1
+  bool motion_distortion = true;      ///< scans distorted by the sweep's motion; default on
+  bool noise = true;                  ///< range noise and dropout; default on
+};
+
+/// The content of a dataset.yaml.
+struct DatasetSpec {
+  int format_version = kDatasetFormatVersion;  ///< version of the file format; default current
+  std::string name{};                          ///< what the dataset is called
+  std::string description{};                   ///< one line about it; optional
+  std::string sensor = "hdl64";                ///< sensor model name ("hdl64", "vlp16", ...)
+  double mount_height = 1.73;                  ///< m, sensor above the ground; default KITTI's
+  std::optional<SimSpec> sim{};                ///< the simulated world; none for recorded datasets
+  std::vector<RobotSpec> robots{};             ///< at least one
+  /// The dataset folder this spec was read from (not stored in the file); relative
+  /// paths resolve against it. Empty: the current folder.
+  std::string folder{};
+
+  /// `relative` resolved against `folder` (an absolute path is kept as it is).
+  [[nodiscard]] std::string resolve(const std::string& relative) const;
+
+  /// The index of the robot called `name`; none if there is no such robot.
+  [[nodiscard]] std::optional<std::size_t> robotIndex(std::string_view name) const;
+};
+
+/// Reads a dataset: `path` is the dataset folder or its dataset.yaml. Throws
+/// core::FileError naming the file, the line and the key for malformed YAML,
+/// missing or unknown keys, values of the wrong type, an unsupported format
+/// version, conventions other than the ones above, a duplicate robot name, or a
+/// robot whose scan source lacks the fields its type needs.
+DatasetSpec readDataset(const std::string& path);
+
+/// The dataset.yaml text of `spec`, with comments explaining the conventions.
+std::string datasetYaml(const DatasetSpec& spec);
+
+/// Writes `spec` as `folder`/dataset.yaml, atomically (creates the folder).
+void writeDataset(const std::string& folder, const DatasetSpec& spec);
+
+/// The ground truth of robot `robot`; throws core::Error when it has none.
+core::Trajectory readGroundTruth(const DatasetSpec& spec, std::size_t robot);
+
+}  // namespace dcl::io

@@ -1,0 +1,43 @@
+#pragma once
+
+/// Spinning LiDAR beam models: which elevations, how many columns a sweep,
+/// range limits and the sensor's imperfections.
+
+#include <Eigen/Geometry>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace dcl::sim {
+
+/// A spinning multi-beam LiDAR.
+struct LidarModel {
+  std::string name;                    ///< "hdl64", "vlp16"
+  std::vector<double> elevations_deg;  ///< beam elevation by ring index (ring 0 first)
+  int columns = 2000;                  ///< firings per revolution
+  double rate_hz = 10.0;               ///< revolutions per second
+  double min_range = 0.9;              ///< m, closer returns are dropped
+  double max_range = 120.0;            ///< m, no return past this
+  double range_noise_sigma = 0.02;     ///< m, Gaussian range noise
+  double dropout = 0.03;               ///< share of beams that return nothing at random
+  double mount_height = 1.73;          ///< m, sensor above the ground on its vehicle
+  /// The carrying vehicle's body as a box in the sensor frame (x forward, z up):
+  /// beams that meet it return nothing, as on KITTI, whose car hides the lowest
+  /// beams ahead and behind. None: nothing of the vehicle is in view.
+  std::optional<Eigen::AlignedBox3d> ego_body = std::nullopt;
+
+  /// Seconds one revolution takes.
+  [[nodiscard]] double sweepDuration() const { return 1.0 / rate_hz; }
+  /// Beams times columns.
+  [[nodiscard]] std::size_t raysPerScan() const { return elevations_deg.size() * columns; }
+
+  /// Velodyne HDL-64E as on KITTI: 64 beams from +2 to -24.8 deg, about 2000 columns, 120 m.
+  static LidarModel hdl64();
+  /// Velodyne VLP-16: 16 beams at +/-15 deg (2 deg apart), 1800 columns, 100 m.
+  static LidarModel vlp16();
+  /// "hdl64" or "vlp16"; throws core::Error naming the accepted names otherwise.
+  static LidarModel byName(std::string_view name);
+};
+
+}  // namespace dcl::sim

@@ -1,0 +1,49 @@
+#pragma once
+
+/// Simulated LiDAR sweeps: Embree ray casting into a World along a moving
+/// sensor's ground-truth trajectory.
+
+#include <cstdint>
+#include <memory>
+
+#include <dcl/core/point_cloud.hpp>
+#include <dcl/core/trajectory.hpp>
+#include <dcl/sim/lidar_model.hpp>
+#include <dcl/sim/world.hpp>
+
+namespace dcl::sim {
+
+/// Switches of the sweep simulation.
+struct ScanOptions {
+  bool motion_distortion = true;  ///< fire each column from the pose at its own time
+  bool noise = true;              ///< range noise and random dropout
+  bool parallel = true;           ///< cast with TBB over all cores
+};
+
+/// Casts LiDAR sweeps into one world. Build once per world (it builds the
+/// Embree scene), then call `scan` from any thread.
+class ScanSimulator {
+ public:
+  ScanSimulator(const World& world, LidarModel model, ScanOptions options = {});
+  ~ScanSimulator();
+  ScanSimulator(ScanSimulator&&) noexcept;
+  ScanSimulator& operator=(ScanSimulator&&) noexcept;
+
+  /// One revolution starting at `stamp` while the sensor moves along
+  /// `T_world_sensor`. Points are in the sensor frame at the moment each was
+  /// fired (as a driver delivers them: with motion distortion when the sensor
+  /// moves), `time` is seconds since `stamp`, `ring` the beam index, `intensity`
+  /// in [0, 1]. The scan's ground-truth pose is T_world_sensor at `stamp`.
+  /// Bit-identical for the same world, model, options, trajectory, stamp and seed,
+  /// whatever the number of threads.
+  [[nodiscard]] core::PointCloud scan(const core::Trajectory& T_world_sensor, double stamp,
+                                      std::uint64_t seed) const;
+
+  [[nodiscard]] const LidarModel& model() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace dcl::sim

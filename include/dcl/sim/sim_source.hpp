@@ -1,0 +1,112 @@
+#pragma once
+
+/// Simulated datasets: a folder holding only dataset.yaml and the robots'
+/// ground truth, whose scans are regenerated on demand, bit-identically, from
+/// the world kind, the seed, the sensor and the ground truth.
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <dcl/core/point_cloud.hpp>
+#include <dcl/core/trajectory.hpp>
+#include <dcl/io/dataset.hpp>
+#include <dcl/io/scan_source.hpp>
+#include <dcl/sim/presets.hpp>
+#include <dcl/sim/scan_simulator.hpp>
+#include <dcl/sim/world.hpp>
+#include <dcl/sim/world_gen.hpp>
+
+namespace dcl::sim {
+
+/// How a simulated dataset's scans are computed (never changes their content).
+struct SimWorldOptions {
+  bool parallel = true;  ///< cast each scan with TBB over all cores; off to parallelise over scans
+};
+
+/// What a simulated dataset regenerates its scans from: every robot's ground
+/// truth (T_world_sensor), the world generated around them, and the scan
+/// simulator of that world. Built once, shared by the robots' sources; `scan`
+/// may be called from any thread.
+class SimWorld {
+ public:
+  /// Reads every robot's ground truth and builds the world (this takes a while
+  /// for long routes). Throws core::Error when the dataset has no `sim` section,
+  /// names an unknown sensor, or a robot lacks ground truth, and core::FileError
+  /// when a ground-truth file cannot be read.
+  explicit SimWorld(const io::DatasetSpec& spec, const SimWorldOptions& options = {});
+  ~SimWorld();
+  SimWorld(const SimWorld&) = delete;
+  SimWorld& operator=(const SimWorld&) = delete;
+
+  /// Scan `index` of robot `robot`: the sweep starting at its ground-truth stamp.
+  /// Throws core::Error for an index past the robot's ground truth.
+  [[nodiscard]] core::PointCloud scan(std::size_t robot, std::size_t index) const;
+
+  /// Number of robots.
+  [[nodiscard]] std::size_t robots() const;
+  /// Ground truth T_world_sensor of robot `robot`; one scan per pose.
+  [[nodiscard]] const core::Trajectory& groundTruth(std::size_t robot) const;
+  /// The dataset it was built from.
+  [[nodiscard]] const io::DatasetSpec& dataset() const;
+  /// The generated world.
+  [[nodiscard]] const World& world() const;
+  /// The scan simulator of the world.
+  [[nodiscard]] const ScanSimulator& simulator() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// The world generator of `kind` applied to `request`.
+World generateWorldOfKind(io::WorldKind kind, const WorldRequest& request);
+
+/// The noise seed of scan `index` of robot `robot` in a dataset seeded `dataset_seed`
+/// (a hash: neighbouring scans and robots get unrelated seeds).
+std::uint64_t scanSeed(std::uint64_t dataset_seed, std::size_t robot, std::size_t index);
+
+/// One robot's regenerated scans, as a ScanSource (stamps from its ground truth).
+class SimScanSource final : public io::ScanSource {
+ public:
+  /// The scans of robot `robot` of `world`.
+  SimScanSource(std::shared_ptr<const SimWorld> world, std::size_t robot);
+
+  /// Number of ground-truth poses.
+  [[nodiscard]] std::size_t size() const override;
+  /// Stamp of ground-truth pose `i`.
+  [[nodiscard]] double stamp(std::size_t i) const override;
+  /// SimWorld::scan of this robot (x y z intensity time ring).
+  [[nodiscard]] core::PointCloud scan(std::size_t i) const override;
+  /// "simulated robot 'NAME' of dataset 'NAME'".
+  [[nodiscard]] std::string describe() const override;
+
+ private:
+  std::shared_ptr<const SimWorld> world_;
+  std::size_t robot_;
+};
+
+/// The scans of robot `robot` of any dataset: regenerated for a simulated robot
+/// (from `world`, built on first need when null and the robot needs it), read
+/// from disk otherwise (io::openScanSource).
+std::unique_ptr<io::ScanSource> openRobotScans(const io::DatasetSpec& spec, std::size_t robot,
+                                               std::shared_ptr<const SimWorld> world = nullptr);
+
+/// The scans of every robot of a dataset; simulated robots share one SimWorld.
+std::vector<std::unique_ptr<io::ScanSource>> openDatasetScans(const io::DatasetSpec& spec,
+                                                              const SimWorldOptions& options = {});
+
+/// What writeSimDataset may switch off in the sensor simulation.
+struct SimDatasetOptions {
+  bool motion_distortion = true;  ///< scans distorted by the motion during the sweep; default on
+  bool noise = true;              ///< range noise and dropout; default on
+};
+
+/// Writes a simulated dataset for `preset` into `folder`: dataset.yaml and one
+/// TUM ground-truth file per robot (`ground_truth/NAME.tum`), no scans. Returns
+/// the dataset as read back from the folder (what every reader will see).
+io::DatasetSpec writeSimDataset(const std::string& folder, const Preset& preset,
+                                const SimDatasetOptions& options = {});
+
+}  // namespace dcl::sim

@@ -1,0 +1,331 @@
+// ROS stays in this file. ROS1's generated message headers do not compile as
+// C++20 (std::allocator<void>::rebind), so messages are serialised here by hand
+// (little-endian; strings and arrays prefixed by a uint32 length) into one raw
+// message type that carries its own type name, md5sum and definition: rosbag
+// only needs ros::message_traits and a ros::serialization::Serializer for it.
+#include <array>
+#include <bit>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <map>
+
+#include <fmt/format.h>
+#include <rosbag/bag.h>
+
+#include <dcl/core/error.hpp>
+#include <dcl/io/bag_writer.hpp>
+
+namespace dcl::io {
+
+namespace {
+
+static_assert(std::endian::native == std::endian::little, "ROS1 serialisation is little-endian");
+
+/// A message type: its name, the md5sum of its definition, and the definition
+/// (with the definitions of the messages it uses) as `rosmsg show` prints it.
+struct MessageType {
+  const char* name;
+  const char* md5;
+  const char* definition;
+};
+
+// The definitions as ROS stores them in bags: the message, then every message
+// it uses after a line of '=' and "MSG: type" (comments left out).
+constexpr const char* kCloudDefinition = R"(Header header
+uint32 height
+uint32 width
+PointField[] fields
+bool is_bigendian
+uint32 point_step
+uint32 row_step
+uint8[] data
+bool is_dense
+================================================================================
+MSG: std_msgs/Header
+uint32 seq
+time stamp
+string frame_id
+================================================================================
+MSG: sensor_msgs/PointField
+uint8 INT8    = 1
+uint8 UINT8   = 2
+uint8 INT16   = 3
+uint8 UINT16  = 4
+uint8 INT32   = 5
+uint8 UINT32  = 6
+uint8 FLOAT32 = 7
+uint8 FLOAT64 = 8
+string name
+uint32 offset
+uint8 datatype
+uint32 count
+)";
+
+constexpr const char* kOdometryDefinition = R"(Header header
+string child_frame_id
+geometry_msgs/PoseWithCovariance pose
+geometry_msgs/TwistWithCovariance twist
+================================================================================
+MSG: std_msgs/Header
+uint32 seq
+time stamp
+string frame_id
+================================================================================
+MSG: geometry_msgs/PoseWithCovariance
+Pose pose
+float64[36] covariance
+================================================================================
+MSG: geometry_msgs/Pose
+Point position
+Quaternion orientation
+================================================================================
+MSG: geometry_msgs/Point
+float64 x
+float64 y
+float64 z
+================================================================================
+MSG: geometry_msgs/Quaternion
+float64 x
+float64 y
+float64 z
+float64 w
+================================================================================
+MSG: geometry_msgs/TwistWithCovariance
+Twist twist
+float64[36] covariance
+================================================================================
+MSG: geometry_msgs/Twist
+Vector3 linear
+Vector3 angular
+================================================================================
+MSG: geometry_msgs/Vector3
+float64 x
+float64 y
+float64 z
+)";
+
+constexpr MessageType kCloudType{"sensor_msgs/PointCloud2", "1158d486dd51d683ce2f1be655c3c181",
+                                 kCloudDefinition};
+constexpr MessageType kOdometryType{"nav_msgs/Odometry", "cd5e73d190d741a2f92e81eda573aca7",
+                                    kOdometryDefinition};
+
+/// A serialised message and its type: what rosbag writes.
+struct RawMessage {
+  const MessageType* type = nullptr;
+  std::vector<std::uint8_t> bytes;
+};
+
+}  // namespace
+
+}  // namespace dcl::io
+
+namespace ros::message_traits {
+
+template <>
+struct MD5Sum<dcl::io::RawMessage> {
+  static const char* value(const dcl::io::RawMessage& m) { return m.type->md5; }
+};
+template <>
+struct DataType<dcl::io::RawMessage> {
+  static const char* value(const dcl::io::RawMessage& m) { return m.type->name; }
+};
+template <>
+struct Definition<dcl::io::RawMessage> {
+  static const char* value(const dcl::io::RawMessage& m) { return m.type->definition; }
+};
+
+}  // namespace ros::message_traits
+
+namespace ros::serialization {
+
+template <>
+struct Serializer<dcl::io::RawMessage> {
+  template <typename Stream>
+  static void write(Stream& stream, const dcl::io::RawMessage& m) {
+    if (!m.bytes.empty())
+      std::memcpy(stream.advance(m.bytes.size()), m.bytes.data(), m.bytes.size());
+  }
+  static std::uint32_t serializedLength(const dcl::io::RawMessage& m) {
+    return static_cast<std::uint32_t>(m.bytes.size());
+  }
+};
+
+}  // namespace ros::serialization
+
+namespace dcl::io {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+/// Appends ROS1-serialised values to a byte buffer.
+struct Serialiser {
+  std::vector<std::uint8_t> bytes;
+
+  template <class T>
+  void put(T value) {
+    static_assert(std::is_arithmetic_v<T>);
+    const std::size_t at = bytes.size();
+    bytes.resize(at + sizeof(T));
+    std::memcpy(bytes.data() + at, &value, sizeof(T));
+  }
+  void putString(const std::string& s) {
+    put(static_cast<std::uint32_t>(s.size()));
+    bytes.insert(bytes.end(), s.begin(), s.end());
+  }
+  void putTime(const ros::Time& t) {
+    put(t.sec);
+    put(t.nsec);
+  }
+  void putHeader(std::uint32_t seq, const ros::Time& stamp, const std::string& frame_id) {
+    put(seq);
+    putTime(stamp);
+    putString(frame_id);
+  }
+};
+
+ros::Time rosTime(double stamp) {
+  auto sec = static_cast<std::uint32_t>(std::floor(stamp));
+  auto nsec = static_cast<std::uint32_t>(std::llround((stamp - std::floor(stamp)) * 1e9));
+  if (nsec >= 1000000000u) {
+    ++sec;
+    nsec -= 1000000000u;
+  }
+  return {sec, nsec};
+}
+
+/// The point layout written: x y z intensity float32, ring uint16 (+2 bytes pad), time float32.
+struct CloudField {
+  const char* name;
+  std::uint32_t offset;
+  std::uint8_t datatype;  // sensor_msgs/PointField constants
+};
+constexpr std::uint8_t kUint16 = 4;
+constexpr std::uint8_t kFloat32 = 7;
+constexpr std::array<CloudField, 6> kCloudFields = {{{"x", 0, kFloat32},
+                                                     {"y", 4, kFloat32},
+                                                     {"z", 8, kFloat32},
+                                                     {"intensity", 12, kFloat32},
+                                                     {"ring", 16, kUint16},
+                                                     {"time", 20, kFloat32}}};
+constexpr std::uint32_t kPointStep = 24;
+
+void putPoint(std::uint8_t* record, const core::PointCloud& cloud, std::size_t i) {
+  const Eigen::Vector3f& p = cloud.points[i];
+  const float values[4] = {p.x(), p.y(), p.z(), cloud.hasIntensity() ? cloud.intensity[i] : 0.0f};
+  const std::uint16_t ring = cloud.hasRing() ? cloud.ring[i] : 0;
+  const float time = cloud.hasTime() ? cloud.time[i] : 0.0f;
+  std::memcpy(record, values, sizeof(values));
+  std::memcpy(record + 16, &ring, sizeof(ring));
+  std::memcpy(record + 20, &time, sizeof(time));
+}
+
+RawMessage cloudMessage(std::uint32_t seq, const ros::Time& stamp, const core::PointCloud& cloud,
+                        const std::string& frame_id) {
+  Serialiser s;
+  const auto n = static_cast<std::uint32_t>(cloud.size());
+  s.putHeader(seq, stamp, frame_id);
+  s.put(std::uint32_t{1});  // height: unorganised
+  s.put(n);                 // width
+  s.put(static_cast<std::uint32_t>(kCloudFields.size()));
+  for (const auto& f : kCloudFields) {
+    s.putString(f.name);
+    s.put(f.offset);
+    s.put(f.datatype);
+    s.put(std::uint32_t{1});  // count
+  }
+  s.put(std::uint8_t{0});  // is_bigendian
+  s.put(kPointStep);
+  s.put(n * kPointStep);  // row_step
+  s.put(n * kPointStep);  // data length
+  const std::size_t at = s.bytes.size();
+  s.bytes.resize(at + std::size_t{n} * kPointStep, 0);
+  for (std::size_t i = 0; i < n; ++i) putPoint(s.bytes.data() + at + i * kPointStep, cloud, i);
+  s.put(std::uint8_t{1});  // is_dense: every point is finite
+  return {&kCloudType, std::move(s.bytes)};
+}
+
+RawMessage odometryMessage(std::uint32_t seq, const ros::Time& stamp, const Eigen::Isometry3d& T,
+                           const std::string& frame_id, const std::string& child_frame_id) {
+  Serialiser s;
+  s.putHeader(seq, stamp, frame_id);
+  s.putString(child_frame_id);
+  const Eigen::Vector3d t = T.translation();
+  const Eigen::Quaterniond q(T.rotation());
+  for (double v : {t.x(), t.y(), t.z(), q.x(), q.y(), q.z(), q.w()}) s.put(v);
+  for (int i = 0; i < 36 + 6 + 36; ++i) s.put(0.0);  // pose covariance, twist, twist covariance
+  return {&kOdometryType, std::move(s.bytes)};
+}
+
+}  // namespace
+
+struct BagWriter::Impl {
+  std::string path;
+  std::string tmp;
+  rosbag::Bag bag;
+  std::map<std::string, std::uint32_t> sequence;  // per topic
+  bool closed = false;
+
+  template <class F>
+  void guarded(const char* what, F&& f) {
+    try {
+      f();
+    } catch (const core::Error&) {
+      throw;
+    } catch (const std::exception& e) {
+      throw core::FileError({path}, fmt::format("cannot {} the bag: {}", what, e.what()));
+    }
+  }
+
+  void write(const std::string& topic, double stamp, const RawMessage& m) {
+    if (!(stamp > 0.0))
+      throw core::FileError({path}, fmt::format("stamp {} is not positive", stamp));
+    guarded("write", [&] { bag.write(topic, rosTime(stamp), m); });
+  }
+};
+
+BagWriter::BagWriter(std::string path) : impl_(std::make_unique<Impl>()) {
+  impl_->path = std::move(path);
+  impl_->tmp = impl_->path + ".tmp";
+  const fs::path parent = fs::path(impl_->path).parent_path();
+  std::error_code ec;
+  if (!parent.empty()) fs::create_directories(parent, ec);
+  impl_->guarded("create", [&] { impl_->bag.open(impl_->tmp, rosbag::bagmode::Write); });
+}
+
+BagWriter::~BagWriter() {
+  if (impl_->closed) return;
+  try {
+    impl_->bag.close();
+  } catch (...) {  // NOLINT(bugprone-empty-catch): the bag is discarded anyway
+  }
+  std::error_code ec;
+  fs::remove(impl_->tmp, ec);
+}
+
+void BagWriter::writeCloud(const std::string& topic, double stamp, const core::PointCloud& cloud,
+                           const std::string& frame_id) {
+  if (!cloud.consistent()) throw core::FileError({impl_->path}, "inconsistent cloud channels");
+  const std::uint32_t seq = impl_->sequence[topic]++;
+  impl_->write(topic, stamp, cloudMessage(seq, rosTime(stamp), cloud, frame_id));
+}
+
+void BagWriter::writeOdometry(const std::string& topic, double stamp,
+                              const Eigen::Isometry3d& T_frame_child, const std::string& frame_id,
+                              const std::string& child_frame_id) {
+  const std::uint32_t seq = impl_->sequence[topic]++;
+  impl_->write(topic, stamp,
+               odometryMessage(seq, rosTime(stamp), T_frame_child, frame_id, child_frame_id));
+}
+
+void BagWriter::close() {
+  if (impl_->closed) return;
+  impl_->guarded("finish", [&] { impl_->bag.close(); });
+  std::error_code ec;
+  fs::rename(impl_->tmp, impl_->path, ec);
+  if (ec) throw core::FileError({impl_->path}, "cannot rename the finished bag: " + ec.message());
+  impl_->closed = true;
+}
+
+}  // namespace dcl::io

@@ -1,0 +1,135 @@
+#include <filesystem>
+
+#include <fmt/format.h>
+
+#include <dcl/core/error.hpp>
+#include <dcl/io/bag_writer.hpp>
+#include <dcl/io/file.hpp>
+#include <dcl/io/kitti_scan.hpp>
+#include <dcl/io/pose_file.hpp>
+#include <dcl/sim/export.hpp>
+#include <dcl/sim/sim_source.hpp>
+
+namespace dcl::sim {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+/// Counts scans and points as they are written and reports progress.
+struct Tally {
+  std::size_t total = 0;
+  std::size_t scans = 0;
+  std::size_t points = 0;
+  const ExportProgress& progress;
+
+  void add(const core::PointCloud& cloud) {
+    ++scans;
+    points += cloud.size();
+    if (progress) progress(scans, total);
+  }
+};
+
+void writeTimes(const std::string& path, const io::ScanSource& source) {
+  io::writeFileAtomic(path, [&](std::ostream& out) {
+    for (std::size_t i = 0; i < source.size(); ++i) out << fmt::format("{}\n", source.stamp(i));
+  });
+}
+
+io::ScanSourceSpec exportKitti(const io::ScanSource& source,
+                               const std::optional<core::Trajectory>& gt, const fs::path& dir,
+                               Tally& tally) {
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    const core::PointCloud cloud = source.scan(i);
+    io::writeKittiScan((dir / "velodyne" / fmt::format("{:06}.bin", i)).string(), cloud);
+    tally.add(cloud);
+  }
+  writeTimes((dir / "times.txt").string(), source);
+  if (gt) io::writeKittiPoses((dir / "poses.txt").string(), *gt);
+  const std::string name = dir.filename().string();
+  return {.type = io::ScanSourceType::kitti,
+          .folder = name + "/velodyne",
+          .times = name + "/times.txt"};
+}
+
+io::ScanSourceSpec exportBag(const io::ScanSource& source, const io::RobotSpec& robot,
+                             const std::optional<core::Trajectory>& gt, const fs::path& dir,
+                             const ExportOptions& options, Tally& tally) {
+  const double offset = options.bag_epoch + robot.start_time;
+  const std::string frame = robot.name + "/lidar";
+  io::BagWriter writer((dir / "scans.bag").string());
+  for (std::size_t i = 0; i < source.size(); ++i) {
+    const core::PointCloud cloud = source.scan(i);
+    writer.writeCloud(options.cloud_topic, offset + source.stamp(i), cloud, frame);
+    tally.add(cloud);
+  }
+  for (std::size_t i = 0; gt && i < gt->size(); ++i) {
+    writer.writeOdometry(options.ground_truth_topic, offset + gt->stamp(i), gt->pose(i),
+                         options.world_frame, frame);
+  }
+  writer.close();
+  return {.type = io::ScanSourceType::bag,
+          .file = dir.filename().string() + "/scans.bag",
+          .topic = options.cloud_topic};
+}
+
+/// A byte-exact copy (a TUM file read and written again could differ in the last digits).
+void copyFile(const std::string& from, const fs::path& to) {
+  const std::vector<char> bytes = io::readFile(from);
+  io::writeFileAtomic(
+      to.string(), [&](std::ostream& out) { out.write(bytes.data(), std::ssize(bytes)); }, true);
+}
+
+std::uintmax_t folderBytes(const fs::path& folder) {
+  std::uintmax_t bytes = 0;
+  for (const auto& entry : fs::recursive_directory_iterator(folder)) {
+    if (entry.is_regular_file()) bytes += entry.file_size();
+  }
+  return bytes;
+}
+
+std::size_t totalScans(const std::vector<std::unique_ptr<io::ScanSource>>& sources) {
+  std::size_t total = 0;
+  for (const auto& s : sources) total += s->size();
+  return total;
+}
+
+}  // namespace
+
+std::string_view toString(ExportFormat format) {
+  return format == ExportFormat::bag ? "bag" : "kitti";
+}
+
+std::optional<ExportFormat> parseExportFormat(std::string_view name) {
+  if (name == "kitti") return ExportFormat::kitti;
+  if (name == "bag") return ExportFormat::bag;
+  return std::nullopt;
+}
+
+ExportResult exportDataset(const io::DatasetSpec& spec, const std::string& folder,
+                           const ExportOptions& options, const ExportProgress& progress) {
+  const auto sources = openDatasetScans(spec);
+  Tally tally{.total = totalScans(sources), .progress = progress};
+  io::DatasetSpec copy = spec;
+  copy.sim.reset();
+  for (std::size_t r = 0; r < spec.robots.size(); ++r) {
+    io::RobotSpec& robot = copy.robots[r];
+    const fs::path dir = fs::path(folder) / robot.name;
+    std::optional<core::Trajectory> gt;
+    if (!robot.ground_truth.empty()) gt = io::readGroundTruth(spec, r);
+    robot.scans = options.format == ExportFormat::kitti
+                      ? exportKitti(*sources[r], gt, dir, tally)
+                      : exportBag(*sources[r], robot, gt, dir, options, tally);
+    if (gt) {
+      robot.ground_truth = robot.name + "/ground_truth.tum";
+      copyFile(spec.resolve(spec.robots[r].ground_truth), (fs::path(folder) / robot.ground_truth));
+    }
+  }
+  io::writeDataset(folder, copy);
+  return {.dataset = io::readDataset(folder),
+          .scans = tally.scans,
+          .points = tally.points,
+          .bytes = folderBytes(folder)};
+}
+
+}  // namespace dcl::sim

@@ -1,0 +1,85 @@
+#include <dcl/core/error.hpp>
+#include <dcl/sim/lidar_model.hpp>
+
+namespace dcl::sim {
+namespace {
+
+// Rings are ordered by elevation, lowest beam first (ring 0 at the bottom), as
+// the ROS velodyne driver numbers them: a bag exported from the simulator reads
+// like one recorded with that driver, whatever the laser firing order.
+
+/// HDL-64E as mounted on KITTI: two blocks of 32 lasers. The upper block
+/// spans +2.0 to -8.33 deg at 1/3 deg, the lower -8.83 to -24.8 deg at about
+/// 0.515 deg (the data sheet's 26.8 deg field of view, evenly split). Real
+/// units deviate by a few hundredths of a degree per laser from this table.
+std::vector<double> hdl64Elevations() {
+  constexpr int kBlock = 32;
+  std::vector<double> top_down;
+  top_down.reserve(2 * kBlock);
+  for (int i = 0; i < kBlock; ++i) top_down.push_back(2.0 - i / 3.0);
+  const double lower_step = (24.8 - 8.83) / (kBlock - 1);
+  for (int i = 0; i < kBlock; ++i) top_down.push_back(-8.83 - i * lower_step);
+  return {top_down.rbegin(), top_down.rend()};
+}
+
+/// VLP-16: 16 lasers from -15 to +15 deg, 2 deg apart. The unit fires them
+/// interleaved (-15, +1, -13, +3, ...); rings here are sorted by elevation.
+std::vector<double> vlp16Elevations() {
+  std::vector<double> elevations;
+  for (int i = 0; i < 16; ++i) elevations.push_back(-15.0 + 2.0 * i);
+  return elevations;
+}
+
+/// KITTI's VW Passat below its Velodyne, up to the bonnet and boot lid: 4.7 m
+/// long from 1.9 m behind the sensor, 1.82 m wide, its top 0.75 m below the
+/// sensor. It hides the lowest beams in arcs ahead and behind: of the ring at
+/// -20 deg about 14 % (KITTI 00 frame 0: 18 %), at -24 deg about 36 % (44 %).
+/// The cabin is left out: the Velodyne's mount lifts it clear of the roof.
+Eigen::AlignedBox3d kittiCarBody() {
+  return {Eigen::Vector3d(-1.9, -0.91, -1.48), Eigen::Vector3d(2.8, 0.91, -0.75)};
+}
+
+}  // namespace
+
+LidarModel LidarModel::hdl64() {
+  LidarModel model;
+  model.name = "hdl64";
+  model.elevations_deg = hdl64Elevations();
+  // KITTI sweeps hold about 2083 firings per ring (0.173 deg); 2000 columns
+  // (0.18 deg) keep the azimuth step round and, after dropout and sky, give
+  // the 120k-125k returns of a KITTI scan.
+  model.columns = 2000;
+  model.rate_hz = 10.0;
+  model.min_range = 0.9;
+  // The data sheet's 120 m; KITTI's published scans stop at about 80 m
+  // (dark targets fade out earlier), which the intensity model does not cut.
+  model.max_range = 120.0;
+  model.range_noise_sigma = 0.02;
+  model.dropout = 0.03;
+  model.mount_height = 1.73;  // KITTI's Velodyne above the road
+  model.ego_body = kittiCarBody();
+  return model;
+}
+
+LidarModel LidarModel::vlp16() {
+  LidarModel model;
+  model.name = "vlp16";
+  model.elevations_deg = vlp16Elevations();
+  model.columns = 1800;  // 0.2 deg at 10 Hz, as the data sheet gives
+  model.rate_hz = 10.0;
+  model.min_range = 0.5;
+  model.max_range = 100.0;
+  model.range_noise_sigma = 0.02;
+  model.dropout = 0.03;
+  model.mount_height = 0.7;       // on top of a Husky/Jackal-size ground robot
+  model.ego_body = std::nullopt;  // a small robot's body stays below the -15 deg cone
+  return model;
+}
+
+LidarModel LidarModel::byName(std::string_view name) {
+  if (name == "hdl64") return hdl64();
+  if (name == "vlp16") return vlp16();
+  throw core::Error("unknown LiDAR model '" + std::string(name) + "': expected 'hdl64' or 'vlp16'");
+}
+
+}  // namespace dcl::sim

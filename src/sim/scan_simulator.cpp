@@ -1,0 +1,288 @@
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+#include <utility>
+#include <vector>
+
+#include <tbb/parallel_for.h>
+
+#include <dcl/core/error.hpp>
+#include <dcl/core/se3.hpp>
+#include <dcl/sim/scan_simulator.hpp>
+
+#include "raycaster.hpp"
+
+namespace dcl::sim {
+namespace {
+
+/// Columns cast together: the unit of parallel work and of packet forming.
+/// Fixed, so that the packets (and hence every result) are the same whether
+/// the blocks run on one thread or many.
+constexpr int kColumnsPerBlock = 16;
+
+/// How the returned intensity follows from the surface. Chosen so that a
+/// KITTI-like street scene averages near KITTI's mean intensity of about 0.28:
+///   I = gain * reflectivity * (floor + (1 - floor) * cos(incidence)) / (1 + r / falloff) + noise.
+struct IntensityModel {
+  float gain = 1.65f;            ///< overall scale of the sensor's reflectance calibration
+  float shading_floor = 0.4f;    ///< share of the return that does not follow cos(incidence)
+  float falloff_range = 150.0f;  ///< m, range at which the return has halved
+  float noise_sigma = 0.02f;     ///< Gaussian noise on the reported intensity
+};
+constexpr IntensityModel kIntensity{};
+
+/// splitmix64's output function: a bijective 64-bit mixer.
+std::uint64_t mix64(std::uint64_t z) {
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+/// Counter-based random numbers for one beam of one sweep: a splitmix64
+/// stream keyed by (seed, stamp, ring, column), so no two beams share state
+/// and the result does not depend on which thread casts the beam.
+class BeamRandom {
+ public:
+  BeamRandom(std::uint64_t seed, double stamp, int ring, int column) {
+    std::uint64_t stamp_bits = 0;
+    std::memcpy(&stamp_bits, &stamp, sizeof stamp);
+    const auto beam = (static_cast<std::uint64_t>(ring) << 32) | static_cast<std::uint32_t>(column);
+    state_ = mix64(seed + mix64(stamp_bits + mix64(beam)));
+  }
+
+  /// Uniform in [0, 1).
+  float uniform() { return static_cast<float>(next() >> 40) * 0x1.0p-24f; }
+
+  /// Two independent standard normals (Box-Muller, both outputs: one log and
+  /// one sincos a beam, which mattered: they were a quarter of a sweep's time).
+  std::pair<float, float> gaussianPair() {
+    const float radius = std::sqrt(-2.0f * std::log(1.0f - uniform()));  // 1 - u in (0, 1]
+    const float angle = 2.0f * static_cast<float>(M_PI) * uniform();
+    return {radius * std::cos(angle), radius * std::sin(angle)};
+  }
+
+ private:
+  std::uint64_t next() { return mix64(state_ += 0x9e3779b97f4a7c15ULL); }
+  std::uint64_t state_;
+};
+
+/// The pose at `t`, clamped to the trajectory's ends.
+Eigen::Isometry3d poseAt(const core::Trajectory& trajectory, double t) {
+  const double clamped = std::clamp(t, trajectory.stamps().front(), trajectory.stamps().back());
+  return *trajectory.at(clamped);
+}
+
+/// What a beam reports: a range and an intensity, or nothing (NaN range).
+struct BeamReturn {
+  float range = std::numeric_limits<float>::quiet_NaN();  ///< m, NaN when no return
+  float intensity = 0.0f;                                 ///< in [0, 1]
+};
+
+/// The noiseless intensity of a hit (IntensityModel), before clamping.
+float intensityOf(const RayHit& hit) {
+  const float shading =
+      kIntensity.shading_floor + (1.0f - kIntensity.shading_floor) * hit.cos_incidence;
+  const float falloff = 1.0f / (1.0f + hit.range / kIntensity.falloff_range);
+  return kIntensity.gain * reflectivity(hit.surface) * shading * falloff;
+}
+
+/// The sweep's fixed geometry: beam directions in the sensor frame and firing times.
+struct BeamTable {
+  int rings = 0;
+  int columns = 0;
+  std::vector<Eigen::Vector3f> directions;  ///< unit, index column * rings + ring
+  std::vector<std::uint8_t> blocked;        ///< 1 where the vehicle's body hides the beam
+  std::vector<double> column_times;         ///< s since the sweep's start
+
+  [[nodiscard]] const Eigen::Vector3f& direction(int ring, int column) const {
+    return directions[static_cast<std::size_t>(column * rings + ring)];
+  }
+};
+
+/// True when the beam from the sensor's origin along `direction` meets `box`
+/// within `max_range` (slab test).
+bool meetsBox(const Eigen::AlignedBox3d& box, const Eigen::Vector3d& direction, double max_range) {
+  double near = 0.0, far = max_range;
+  for (int axis = 0; axis < 3; ++axis) {
+    const double d = direction[axis];
+    if (std::abs(d) < 1e-12) {
+      if (box.min()[axis] > 0.0 || box.max()[axis] < 0.0) return false;
+      continue;
+    }
+    const double t1 = box.min()[axis] / d, t2 = box.max()[axis] / d;
+    near = std::max(near, std::min(t1, t2));
+    far = std::min(far, std::max(t1, t2));
+  }
+  return near <= far;
+}
+
+/// Marks the beams the vehicle's body hides (none without a body).
+std::vector<std::uint8_t> blockedBeams(const LidarModel& model,
+                                       std::span<const Eigen::Vector3f> directions) {
+  std::vector<std::uint8_t> blocked(directions.size(), 0);
+  if (!model.ego_body) return blocked;
+  for (std::size_t i = 0; i < directions.size(); ++i)
+    blocked[i] = meetsBox(*model.ego_body, directions[i].cast<double>(), model.max_range) ? 1 : 0;
+  return blocked;
+}
+
+/// The Velodyne spins clockwise seen from above. Column 0 looks backwards, so
+/// the sweep's seam lies behind the vehicle and the front is seen mid-sweep,
+/// as on KITTI, whose cameras trigger when the LiDAR faces forward.
+BeamTable makeBeamTable(const LidarModel& model) {
+  BeamTable table;
+  table.rings = static_cast<int>(model.elevations_deg.size());
+  table.columns = model.columns;
+  table.directions.reserve(model.raysPerScan());
+  for (int c = 0; c < model.columns; ++c) {
+    const double azimuth = M_PI - 2.0 * M_PI * c / model.columns;
+    table.column_times.push_back(model.sweepDuration() * c / model.columns);
+    for (double elevation_deg : model.elevations_deg) {
+      const double elevation = core::deg2rad(elevation_deg);
+      table.directions.emplace_back(Eigen::Vector3d(std::cos(elevation) * std::cos(azimuth),
+                                                    std::cos(elevation) * std::sin(azimuth),
+                                                    std::sin(elevation))
+                                        .cast<float>());
+    }
+  }
+  table.blocked = blockedBeams(model, table.directions);
+  return table;
+}
+
+/// Refuses models the sweep cannot be cast with.
+void checkModel(const LidarModel& model) {
+  if (model.elevations_deg.empty() || model.columns <= 0 || !(model.rate_hz > 0.0))
+    throw core::Error("LiDAR model '" + model.name +
+                      "' needs at least one beam, one column and a positive rate");
+  if (!(model.min_range >= 0.0 && model.max_range > model.min_range))
+    throw core::Error("LiDAR model '" + model.name + "' needs 0 <= min_range < max_range");
+  if (!(model.dropout >= 0.0 && model.dropout < 1.0) || !(model.range_noise_sigma >= 0.0))
+    throw core::Error("LiDAR model '" + model.name +
+                      "' needs dropout in [0, 1) and a non-negative noise sigma");
+}
+
+}  // namespace
+
+struct ScanSimulator::Impl {
+  RayCaster caster;
+  LidarModel model;
+  ScanOptions options;
+  BeamTable beams;
+
+  Impl(const World& world, LidarModel m, ScanOptions o)
+      : caster(world), model(std::move(m)), options(o), beams(makeBeamTable(model)) {}
+
+  /// T_world_sensor of every column: at its firing time, or all at `stamp` without distortion.
+  [[nodiscard]] std::vector<Eigen::Isometry3f> columnPoses(const core::Trajectory& trajectory,
+                                                           double stamp) const;
+  /// Casts the columns of block `block` and writes their beams' returns.
+  void castBlock(int block, std::span<const Eigen::Isometry3f> poses, double stamp,
+                 std::uint64_t seed, std::span<BeamReturn> returns) const;
+  /// What the sensor reports for a hit: noise, dropout and range limits applied.
+  [[nodiscard]] BeamReturn measure(const RayHit& hit, BeamRandom& random) const;
+  /// The returns as a cloud, column by column, rings in order within a column.
+  [[nodiscard]] core::PointCloud collect(std::span<const BeamReturn> returns) const;
+};
+
+std::vector<Eigen::Isometry3f> ScanSimulator::Impl::columnPoses(const core::Trajectory& trajectory,
+                                                                double stamp) const {
+  const Eigen::Isometry3f T_world_start = poseAt(trajectory, stamp).cast<float>();
+  std::vector<Eigen::Isometry3f> poses(beams.column_times.size(), T_world_start);
+  if (!options.motion_distortion) return poses;
+  for (std::size_t c = 0; c < poses.size(); ++c)
+    poses[c] = poseAt(trajectory, stamp + beams.column_times[c]).cast<float>();
+  return poses;
+}
+
+BeamReturn ScanSimulator::Impl::measure(const RayHit& hit, BeamRandom& random) const {
+  if (!hit.hit()) return {};
+  if (!options.noise) {
+    if (hit.range < model.min_range) return {};
+    return {hit.range, std::clamp(intensityOf(hit), 0.0f, 1.0f)};
+  }
+  if (random.uniform() < model.dropout) return {};
+  const auto [range_noise, intensity_noise] = random.gaussianPair();
+  const float range = hit.range + static_cast<float>(model.range_noise_sigma) * range_noise;
+  if (range < model.min_range || range > model.max_range) return {};
+  const float intensity = intensityOf(hit) + kIntensity.noise_sigma * intensity_noise;
+  return {range, std::clamp(intensity, 0.0f, 1.0f)};
+}
+
+void ScanSimulator::Impl::castBlock(int block, std::span<const Eigen::Isometry3f> poses,
+                                    double stamp, std::uint64_t seed,
+                                    std::span<BeamReturn> returns) const {
+  const int first = block * kColumnsPerBlock;
+  const int last = std::min(first + kColumnsPerBlock, beams.columns);
+  const auto offset = static_cast<std::size_t>(first * beams.rings);
+  const auto count = static_cast<std::size_t>((last - first) * beams.rings);
+  std::vector<Ray> rays(count);
+  for (int c = first; c < last; ++c) {
+    const auto& T_world_sensor = poses[static_cast<std::size_t>(c)];
+    for (int r = 0; r < beams.rings; ++r) {
+      auto& ray = rays[static_cast<std::size_t>(c * beams.rings + r) - offset];
+      ray.origin = T_world_sensor.translation();
+      ray.direction = T_world_sensor.linear() * beams.direction(r, c);
+    }
+  }
+  std::vector<RayHit> hits(count);
+  caster.cast(rays, static_cast<float>(model.max_range), hits);
+  std::size_t i = 0;
+  for (int c = first; c < last; ++c) {
+    for (int r = 0; r < beams.rings; ++r, ++i) {
+      if (beams.blocked[offset + i]) continue;  // stays "no return"
+      BeamRandom random(seed, stamp, r, c);
+      returns[offset + i] = measure(hits[i], random);
+    }
+  }
+}
+
+core::PointCloud ScanSimulator::Impl::collect(std::span<const BeamReturn> returns) const {
+  const auto n = static_cast<std::size_t>(std::count_if(
+      returns.begin(), returns.end(), [](const BeamReturn& b) { return !std::isnan(b.range); }));
+  core::PointCloud cloud;
+  cloud.reserve(n);
+  std::size_t beam = 0;
+  for (int column = 0; column < beams.columns; ++column) {
+    const auto time = static_cast<float>(beams.column_times[static_cast<std::size_t>(column)]);
+    for (int ring = 0; ring < beams.rings; ++ring, ++beam) {
+      const BeamReturn& b = returns[beam];
+      if (std::isnan(b.range)) continue;
+      cloud.points.push_back(beams.directions[beam] * b.range);
+      cloud.intensity.push_back(b.intensity);
+      cloud.time.push_back(time);
+      cloud.ring.push_back(static_cast<std::uint16_t>(ring));
+    }
+  }
+  return cloud;
+}
+
+ScanSimulator::ScanSimulator(const World& world, LidarModel model, ScanOptions options) {
+  checkModel(model);
+  impl_ = std::make_unique<Impl>(world, std::move(model), options);
+}
+
+ScanSimulator::~ScanSimulator() = default;
+ScanSimulator::ScanSimulator(ScanSimulator&&) noexcept = default;
+ScanSimulator& ScanSimulator::operator=(ScanSimulator&&) noexcept = default;
+
+const LidarModel& ScanSimulator::model() const {
+  return impl_->model;
+}
+
+core::PointCloud ScanSimulator::scan(const core::Trajectory& T_world_sensor, double stamp,
+                                     std::uint64_t seed) const {
+  if (T_world_sensor.empty()) throw core::Error("cannot simulate a scan on an empty trajectory");
+  const auto poses = impl_->columnPoses(T_world_sensor, stamp);
+  std::vector<BeamReturn> returns(impl_->model.raysPerScan());
+  const int blocks = (impl_->beams.columns + kColumnsPerBlock - 1) / kColumnsPerBlock;
+  const auto cast_block = [&](int block) { impl_->castBlock(block, poses, stamp, seed, returns); };
+  if (impl_->options.parallel) {
+    tbb::parallel_for(0, blocks, cast_block);
+  } else {
+    for (int block = 0; block < blocks; ++block) cast_block(block);
+  }
+  return impl_->collect(returns);
+}
+
+}  // namespace dcl::sim

@@ -1,0 +1,204 @@
+#include <filesystem>
+#include <mutex>
+
+#include <fmt/format.h>
+
+#include <dcl/core/error.hpp>
+#include <dcl/io/pose_file.hpp>
+#include <dcl/sim/lidar_model.hpp>
+#include <dcl/sim/sim_source.hpp>
+
+namespace dcl::sim {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+/// splitmix64's finaliser: a bijective mix of all 64 bits.
+std::uint64_t mix(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ull;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
+  return x ^ (x >> 31);
+}
+
+const io::SimSpec& requireSim(const io::DatasetSpec& spec) {
+  if (!spec.sim) {
+    throw core::Error(
+        fmt::format("dataset '{}' has no sim section: its scans are not simulated", spec.name));
+  }
+  return *spec.sim;
+}
+
+std::vector<core::Trajectory> readAllGroundTruth(const io::DatasetSpec& spec) {
+  std::vector<core::Trajectory> out;
+  for (std::size_t r = 0; r < spec.robots.size(); ++r) {
+    out.push_back(io::readGroundTruth(spec, r));
+    if (!out.back().isSorted()) {
+      throw core::Error(fmt::format("dataset '{}': robot '{}': ground-truth stamps decrease",
+                                    spec.name, spec.robots[r].name));
+    }
+  }
+  return out;
+}
+
+LidarModel modelOf(const io::DatasetSpec& spec) {
+  LidarModel model = LidarModel::byName(spec.sensor);
+  model.mount_height = spec.mount_height;
+  return model;
+}
+
+ScanOptions scanOptionsOf(const io::SimSpec& sim, const SimWorldOptions& options) {
+  return {
+      .motion_distortion = sim.motion_distortion, .noise = sim.noise, .parallel = options.parallel};
+}
+
+}  // namespace
+
+World generateWorldOfKind(io::WorldKind kind, const WorldRequest& request) {
+  switch (kind) {
+    case io::WorldKind::campus:
+      return generateCampusWorld(request);
+    case io::WorldKind::aliasing:
+      return generateAliasingWorld(request);
+    default:
+      return generateCityWorld(request);
+  }
+}
+
+std::uint64_t scanSeed(std::uint64_t dataset_seed, std::size_t robot, std::size_t index) {
+  return mix(mix(mix(dataset_seed) ^ robot) ^ index);
+}
+
+// ---- SimWorld ----
+
+struct SimWorld::Impl {
+  io::DatasetSpec spec;
+  std::vector<core::Trajectory> ground_truth;
+  World world;
+  ScanSimulator simulator;
+
+  Impl(const io::DatasetSpec& s, std::vector<core::Trajectory> gt, const SimWorldOptions& options)
+      : spec(s),
+        ground_truth(std::move(gt)),
+        world(generateWorldOfKind(
+            requireSim(s).world,
+            {.routes = ground_truth, .mount_height = s.mount_height, .seed = s.sim->seed})),
+        simulator(world, modelOf(s), scanOptionsOf(*s.sim, options)) {}
+};
+
+SimWorld::SimWorld(const io::DatasetSpec& spec, const SimWorldOptions& options) {
+  requireSim(spec);
+  (void)LidarModel::byName(spec.sensor);  // fail before the slow part
+  impl_ = std::make_unique<Impl>(spec, readAllGroundTruth(spec), options);
+}
+
+SimWorld::~SimWorld() = default;
+
+core::PointCloud SimWorld::scan(std::size_t robot, std::size_t index) const {
+  const core::Trajectory& gt = groundTruth(robot);
+  if (index >= gt.size()) {
+    throw core::Error(fmt::format("robot '{}': no scan {} (it has {})",
+                                  impl_->spec.robots[robot].name, index, gt.size()));
+  }
+  return impl_->simulator.scan(gt, gt.stamp(index), scanSeed(impl_->spec.sim->seed, robot, index));
+}
+
+std::size_t SimWorld::robots() const {
+  return impl_->ground_truth.size();
+}
+
+const core::Trajectory& SimWorld::groundTruth(std::size_t robot) const {
+  return impl_->ground_truth.at(robot);
+}
+
+const io::DatasetSpec& SimWorld::dataset() const {
+  return impl_->spec;
+}
+
+const World& SimWorld::world() const {
+  return impl_->world;
+}
+
+const ScanSimulator& SimWorld::simulator() const {
+  return impl_->simulator;
+}
+
+// ---- SimScanSource ----
+
+SimScanSource::SimScanSource(std::shared_ptr<const SimWorld> world, std::size_t robot)
+    : world_(std::move(world)), robot_(robot) {
+  if (robot_ >= world_->robots()) {
+    throw core::Error(fmt::format("no robot {} (the dataset has {})", robot_, world_->robots()));
+  }
+}
+
+std::size_t SimScanSource::size() const {
+  return world_->groundTruth(robot_).size();
+}
+
+double SimScanSource::stamp(std::size_t i) const {
+  if (i >= size())
+    throw core::Error(fmt::format("{}: no scan {} (it has {})", describe(), i, size()));
+  return world_->groundTruth(robot_).stamp(i);
+}
+
+core::PointCloud SimScanSource::scan(std::size_t i) const {
+  return world_->scan(robot_, i);
+}
+
+std::string SimScanSource::describe() const {
+  const io::DatasetSpec& spec = world_->dataset();
+  return fmt::format("simulated robot '{}' of dataset '{}'", spec.robots[robot_].name, spec.name);
+}
+
+// ---- opening datasets ----
+
+std::unique_ptr<io::ScanSource> openRobotScans(const io::DatasetSpec& spec, std::size_t robot,
+                                               std::shared_ptr<const SimWorld> world) {
+  if (spec.robots.at(robot).scans.type != io::ScanSourceType::sim) {
+    return io::openScanSource(spec, robot);
+  }
+  if (!world) world = std::make_shared<const SimWorld>(spec);
+  return std::make_unique<SimScanSource>(std::move(world), robot);
+}
+
+std::vector<std::unique_ptr<io::ScanSource>> openDatasetScans(const io::DatasetSpec& spec,
+                                                              const SimWorldOptions& options) {
+  std::shared_ptr<const SimWorld> world;
+  std::vector<std::unique_ptr<io::ScanSource>> out;
+  for (std::size_t r = 0; r < spec.robots.size(); ++r) {
+    const bool sim = spec.robots[r].scans.type == io::ScanSourceType::sim;
+    if (sim && !world) world = std::make_shared<const SimWorld>(spec, options);
+    out.push_back(openRobotScans(spec, r, world));
+  }
+  return out;
+}
+
+// ---- writing ----
+
+io::DatasetSpec writeSimDataset(const std::string& folder, const Preset& preset,
+                                const SimDatasetOptions& options) {
+  const auto kind = io::parseWorldKind(preset.world);
+  if (!kind)
+    throw core::Error(fmt::format("preset '{}': unknown world '{}'", preset.name, preset.world));
+  (void)LidarModel::byName(preset.sensor);
+  io::DatasetSpec spec;
+  spec.name = preset.name;
+  spec.description = preset.description;
+  spec.sensor = preset.sensor;
+  spec.mount_height = preset.mount_height;
+  spec.sim = io::SimSpec{.world = *kind,
+                         .seed = preset.seed,
+                         .motion_distortion = options.motion_distortion,
+                         .noise = options.noise};
+  for (const Route& route : preset.routes) {
+    const std::string gt = "ground_truth/" + route.name + ".tum";
+    io::writeTumPoses((fs::path(folder) / gt).string(), route.T_world_sensor);
+    spec.robots.push_back({.name = route.name, .scans = {}, .ground_truth = gt, .start_time = 0.0});
+  }
+  io::writeDataset(folder, spec);
+  return io::readDataset(folder);
+}
+
+}  // namespace dcl::sim

@@ -1,0 +1,258 @@
+// The world generators: ground, roads, then lot after lot along both sides of every route.
+
+#include <algorithm>
+#include <cmath>
+
+#include <dcl/sim/world_gen.hpp>
+
+#include "world_detail.hpp"
+
+namespace dcl::sim {
+
+namespace {
+
+using detail::BuildingSpec;
+using detail::LotBox;
+using detail::LotFrame;
+using detail::Rng;
+
+/// Nothing but road, kerb and ground comes nearer a route than this (m); the
+/// tests check the 3 m.
+constexpr double kRouteClearance = 3.3;
+
+/// Fills the lots along the routes with buildings, trees, poles, cars and hedges.
+class LotFiller {
+ public:
+  LotFiller(const WorldStyle& style, const detail::RouteIndex& index, detail::PropAdder& adder,
+            std::uint64_t seed)
+      : style_(style), index_(index), adder_(adder), seed_(seed) {}
+
+  void fillRoute(std::size_t route) {
+    const double length = index_.length(route);
+    if (index_.samples(route).empty()) return;
+    for (const double side : {1.0, -1.0}) {
+      Lot lot{route, side, 0.0, 0.0, false};
+      if (style_.repeat_period > 0) alignToWorld(lot);
+      Rng offset_rng(detail::mix(detail::mix(seed_, route), side > 0));
+      if (style_.repeat_period <= 0) lot.s0 = offset_rng.uniform(0.0, 10.0);
+      for (std::uint64_t k = 0; lot.s0 < length; ++k) lot.s0 += fillLot(lot, k);
+    }
+  }
+
+ private:
+  /// A stretch of one side of a route; a flipped lot is laid out against the
+  /// route's direction (aliasing: every lot faces the same world direction).
+  struct Lot {
+    std::size_t route;
+    double side;    ///< +1 left of the route, -1 right
+    double s0;      ///< arc length where the lot starts
+    double length;  ///< along the route
+    bool flipped;
+    /// Arc length of lot coordinate a (0 at the lot's start in its own direction).
+    [[nodiscard]] double s(double a) const { return flipped ? s0 + length - a : s0 + a; }
+    /// The side in the lot's own direction (what its seed depends on).
+    [[nodiscard]] double ownSide() const { return flipped ? -side : side; }
+  };
+
+  /// Aliasing: lot boundaries where the world position along the route's
+  /// heading is a multiple of the period, and one heading for every lot.
+  void alignToWorld(Lot& lot) const {
+    const detail::RouteFrame first = index_.frameAt(lot.route, 0.0);
+    lot.flipped = first.along.x() < 0 || (first.along.x() == 0 && first.along.y() < 0);
+    const Eigen::Vector2d heading = lot.flipped ? -first.along : first.along;
+    const double position = first.xy.dot(heading) * (lot.flipped ? -1.0 : 1.0);
+    const double phase =
+        position - style_.repeat_period * std::floor(position / style_.repeat_period);
+    lot.s0 = -phase;
+  }
+
+  /// One lot starting at lot.s0; returns its length along the route.
+  double fillLot(Lot lot, std::uint64_t k) {
+    Rng rng(lotSeed(lot, k));
+    const double gap = rng.uniform(style_.gap_min, style_.gap_max);
+    double frontage = rng.uniform(style_.frontage_min, style_.frontage_max);
+    lot.length = style_.repeat_period > 0 ? style_.repeat_period : frontage + gap;
+    frontage = std::min(frontage, lot.length - 1.0);
+    addStreetProps(lot, rng);
+    const detail::RouteFrame mid = index_.frameAt(lot.route, lot.s(frontage / 2));
+    const LotFrame frame{mid.xy, lot.flipped ? -mid.along : mid.along, lot.side * mid.left};
+    const bool open = rng.chance(style_.open_share);
+    const bool front = rng.chance(style_.front_share);
+    Rng content(rng.next());
+    if (!mid.fresh) return lot.length;
+    if (open) addOpenLot(frame, frontage, content);
+    if (!open) addBuildings(frame, frontage, content);
+    if (front) addFront(frame, frontage, content);
+    return lot.length;
+  }
+
+  [[nodiscard]] std::uint64_t lotSeed(const Lot& lot, std::uint64_t k) const {
+    const std::uint64_t h = detail::mix(seed_, lot.ownSide() > 0 ? 0x1e7 : 0x21);
+    if (style_.repeat_period > 0) return h;  // every lot the same: perceptual aliasing
+    return detail::mix(detail::mix(h, lot.route), k);
+  }
+
+  /// Trees and poles on the pavement, cars parked along the kerb.
+  void addStreetProps(const Lot& lot, Rng& rng) {
+    const double w = style_.road_half_width;
+    for (double a = style_.tree_spacing / 2; a < lot.length; a += style_.tree_spacing) {
+      const double jitter = rng.uniform(-1.0, 1.0);
+      const bool tree = rng.chance(style_.tree_share);
+      Rng tree_rng(rng.next());
+      const auto f = index_.frameAt(lot.route, lot.s(a + jitter));
+      if (tree && f.fresh)
+        adder_.addTree(f.xy + lot.side * (w + 0.55 * style_.pavement_width) * f.left, tree_rng);
+    }
+    const int poles = static_cast<int>(lot.length / style_.pole_spacing + rng.uniform());
+    for (int i = 0; i < poles; ++i) {
+      const double a = rng.uniform(0.0, lot.length);
+      const bool lamp = rng.chance(0.6);
+      const auto f = index_.frameAt(lot.route, lot.s(a));
+      const Eigen::Vector2d out = lot.side * f.left;
+      if (f.fresh) adder_.addPole(f.xy + (w + 0.4) * out, -1.6 * out, lamp);
+    }
+    if (w < 5.0) return;  // no parking lane
+    for (double a = 3.25; a < lot.length; a += 6.5) {
+      const bool car = rng.chance(style_.car_share);
+      Rng car_rng(rng.next());
+      const auto f = index_.frameAt(lot.route, lot.s(a));
+      const Eigen::Vector2d heading = lot.ownSide() > 0 ? -f.along : f.along;
+      if (car && f.fresh)
+        adder_.addCar(f.xy + lot.side * (w - 1.1) * f.left, lot.flipped ? -heading : heading,
+                      car_rng);
+    }
+  }
+
+  BuildingSpec randomBuilding(double front, double frontage, Rng& rng) const {
+    BuildingSpec spec;
+    spec.front = front;
+    spec.frontage = frontage;
+    spec.depth = rng.uniform(style_.depth_min, style_.depth_max);
+    spec.floor_height = style_.floor_height;
+    const int floors = rng.integer(style_.floors_min, style_.floors_max);
+    spec.height = floors * style_.floor_height + rng.uniform(0.3, 1.5);
+    spec.relief = rng.chance(style_.relief_share);
+    spec.clearance = style_.road_half_width + 0.5;  // off every lane's road, balconies too
+    return spec;
+  }
+
+  void addBuildings(const LotFrame& frame, double frontage, Rng& rng) {
+    const double front = rng.uniform(style_.setback_min, style_.setback_max);
+    const BuildingSpec spec = randomBuilding(front, frontage, rng);
+    detail::addBuilding(adder_, frame, spec, rng);
+    if (!rng.chance(style_.back_row_share)) return;
+    const double back = front + spec.depth + rng.uniform(4.0, 12.0);
+    BuildingSpec behind = randomBuilding(back, frontage * rng.uniform(0.6, 1.0), rng);
+    const double tallest = style_.floors_max * style_.floor_height + 1.5;
+    behind.height = std::min(behind.height + rng.integer(1, 4) * style_.floor_height, tallest);
+    detail::addBuilding(adder_, frame, behind, rng);
+  }
+
+  /// A square or lawn with trees, or a car park.
+  void addOpenLot(const LotFrame& frame, double frontage, Rng& rng) {
+    const double b0 = style_.road_half_width + style_.pavement_width + 2.0;
+    const double b1 = style_.setback_max + style_.depth_max;
+    if (rng.chance(style_.parking_share)) return addCarPark(frame, frontage, b0 + 2.0, rng);
+    const double area = frontage * (b1 - b0);
+    const int trees = static_cast<int>(style_.lawn_tree_density * area / 100.0 + rng.uniform());
+    for (int i = 0; i < trees; ++i) {
+      const double a = rng.uniform(-frontage / 2, frontage / 2), b = rng.uniform(b0, b1);
+      Rng tree_rng(rng.next());
+      adder_.addTree(frame.toWorld(a, b), tree_rng);
+    }
+  }
+
+  /// Two rows of cars parked nose to nose, across the lot.
+  void addCarPark(const LotFrame& frame, double frontage, double b0, Rng& rng) {
+    for (double a = -frontage / 2 + 1.5; a < frontage / 2 - 1.5; a += 2.7) {
+      for (int row = 0; row < 2; ++row) {
+        const bool car = rng.chance(0.7);
+        Rng car_rng(rng.next());
+        const double b = b0 + 2.5 + row * 5.5;
+        if (car) adder_.addCar(frame.toWorld(a, b), row == 0 ? frame.out : -frame.out, car_rng);
+      }
+    }
+  }
+
+  /// A hedge or a garden wall at the back of the pavement.
+  void addFront(const LotFrame& frame, double frontage, Rng& rng) {
+    const double b = style_.road_half_width + style_.pavement_width + 0.8;
+    const bool hedge = rng.chance(0.6);
+    const LotBox box{0, b, frontage - 1.0, hedge ? 0.8 : 0.3, 0, rng.uniform(1.0, 1.8)};
+    const Surface surface = hedge ? Surface::vegetation : Surface::wall;
+    adder_.addStructure(frame, std::span(&box, 1), surface, style_.road_half_width + 0.5);
+  }
+
+  const WorldStyle& style_;
+  const detail::RouteIndex& index_;
+  detail::PropAdder& adder_;
+  std::uint64_t seed_;
+};
+
+}  // namespace
+
+WorldStyle cityStyle() {
+  return {};
+}
+
+WorldStyle campusStyle() {
+  WorldStyle s;
+  s.road_half_width = 4.5;
+  s.pavement_width = 2.5;
+  s.setback_min = 12.0;
+  s.setback_max = 20.0;
+  s.frontage_min = 20.0;
+  s.frontage_max = 45.0;
+  s.depth_min = 10.0;
+  s.depth_max = 22.0;
+  s.gap_min = 8.0;
+  s.gap_max = 20.0;
+  s.floors_min = 1;
+  s.floors_max = 4;
+  s.open_share = 0.35;
+  s.back_row_share = 0.25;
+  s.relief_share = 0.4;
+  s.front_share = 0.2;
+  s.tree_spacing = 7.0;
+  s.tree_share = 0.85;
+  s.lawn_tree_density = 0.6;
+  s.parking_share = 0.4;
+  s.pole_spacing = 25.0;
+  s.terrain_amplitude = 1.0;
+  return s;
+}
+
+WorldStyle aliasingStyle() {
+  WorldStyle s;
+  s.repeat_period = 48.0;
+  s.open_share = 0.0;
+  s.terrain_amplitude = 0.0;
+  s.ground_roughness = 0.0;
+  return s;
+}
+
+World generateWorld(const WorldRequest& request, const WorldStyle& style) {
+  const detail::RouteIndex index(request.routes, request.mount_height);
+  const detail::Terrain terrain(index, style, request.seed);
+  World world;
+  detail::addGround(world, terrain, index, style);
+  detail::addRoads(world, index, style);
+  detail::PropAdder adder(world, index, terrain, kRouteClearance);
+  LotFiller filler(style, index, adder, detail::mix(request.seed, 0x10f5));
+  for (std::size_t r = 0; r < index.routeCount(); ++r) filler.fillRoute(r);
+  return world;
+}
+
+World generateCityWorld(const WorldRequest& request) {
+  return generateWorld(request, cityStyle());
+}
+
+World generateCampusWorld(const WorldRequest& request) {
+  return generateWorld(request, campusStyle());
+}
+
+World generateAliasingWorld(const WorldRequest& request) {
+  return generateWorld(request, aliasingStyle());
+}
+
+}  // namespace dcl::sim

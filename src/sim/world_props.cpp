@@ -1,0 +1,171 @@
+// Props: buildings with varied footprints and facade relief, trees, poles, cars.
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "world_detail.hpp"
+
+namespace dcl::sim::detail {
+
+double LotFrame::yaw() const {
+  return std::atan2(along.y(), along.x());
+}
+
+std::array<Eigen::Vector2d, 4> PropAdder::corners(const LotFrame& frame, const LotBox& box) const {
+  const double ha = box.size_a / 2, hb = box.size_b / 2;
+  return {frame.toWorld(box.a - ha, box.b - hb), frame.toWorld(box.a + ha, box.b - hb),
+          frame.toWorld(box.a + ha, box.b + hb), frame.toWorld(box.a - ha, box.b + hb)};
+}
+
+void PropAdder::addLotBox(const LotFrame& frame, const LotBox& box, double base, Surface surface) {
+  const Eigen::Vector2d c = frame.toWorld(box.a, box.b);
+  const Eigen::Isometry3d T_world_box = Eigen::Translation3d(c.x(), c.y(), base + box.z0) *
+                                        Eigen::AngleAxisd(frame.yaw(), Eigen::Vector3d::UnitZ());
+  world_.addBox(T_world_box, {box.size_a, box.size_b, box.z1 - box.z0}, surface);
+}
+
+bool PropAdder::addStructure(const LotFrame& frame, std::span<const LotBox> boxes, Surface surface,
+                             double clearance) {
+  if (boxes.empty()) return false;
+  const double needed = std::max(clearance, clearance_);
+  double base = std::numeric_limits<double>::infinity();
+  for (const LotBox& box : boxes) {
+    const auto footprint = corners(frame, box);
+    if (!index_.clear(footprint, needed)) return false;
+    if (&box == &boxes.front())
+      for (const auto& p : footprint) base = std::min(base, terrain_.height(p));
+  }
+  for (const LotBox& box : boxes) addLotBox(frame, box, base - 0.3, surface);
+  return true;
+}
+
+bool PropAdder::clearDisc(const Eigen::Vector2d& xy, double radius) const {
+  return !index_.nearest(xy, radius + clearance_);
+}
+
+bool PropAdder::addTree(const Eigen::Vector2d& xy, Rng& rng) {
+  const double trunk_r = rng.uniform(0.12, 0.3), trunk_h = rng.uniform(1.8, 3.5);
+  Eigen::Vector3d radii(rng.uniform(1.5, 3.5), 0.0, rng.uniform(1.8, 4.0));
+  if (const auto near = index_.nearest(xy, radii.x() + clearance_)) {
+    radii.x() = near->distance - clearance_;  // a smaller crown beside the road
+    if (radii.x() < 1.0) return false;
+  }
+  const double base = terrain_.height(xy) - 0.2;
+  world_.addCylinder({xy.x(), xy.y(), base}, trunk_r, trunk_h + 0.5 * radii.z() + 0.2, 7,
+                     Surface::trunk);
+  const Eigen::Vector3d centre(xy.x(), xy.y(), base + 0.2 + trunk_h + radii.z());
+  world_.addEllipsoid(centre, {radii.x(), radii.x() * 0.9, radii.z()}, 5, Surface::vegetation);
+  return true;
+}
+
+bool PropAdder::addPole(const Eigen::Vector2d& xy, const Eigen::Vector2d& arm, bool lamp) {
+  if (!clearDisc(xy, 0.15) || (lamp && !clearDisc(xy + arm, 0.15))) return false;
+  const double base = terrain_.height(xy) - 0.2;
+  const double height = lamp ? 8.0 : 2.8;
+  world_.addCylinder({xy.x(), xy.y(), base}, lamp ? 0.12 : 0.05, height, 6, Surface::pole);
+  const Eigen::Vector2d mid = xy + arm / 2;
+  const double yaw = std::atan2(arm.y(), arm.x());
+  const Eigen::Isometry3d T_world_top =
+      Eigen::Translation3d(mid.x(), mid.y(), base + height - (lamp ? 0.15 : 0.8)) *
+      Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ());
+  if (lamp) world_.addBox(T_world_top, {arm.norm(), 0.2, 0.15}, Surface::pole);
+  if (!lamp) world_.addBox(T_world_top, {0.06, 0.7, 0.7}, Surface::pole);  // a sign plate
+  return true;
+}
+
+bool PropAdder::addCar(const Eigen::Vector2d& xy, const Eigen::Vector2d& along, Rng& rng) {
+  const double length = rng.uniform(3.9, 4.9), width = rng.uniform(1.7, 1.9);
+  const double roof = rng.uniform(1.4, 1.7), cabin_shift = rng.uniform(-0.4, 0.0);
+  const LotFrame frame{xy, along, Eigen::Vector2d(-along.y(), along.x())};
+  const LotBox body{0, 0, length, width, 0.3, 1.0};
+  const LotBox cabin{cabin_shift * length / 4, 0, length * 0.5, width - 0.1, 1.0, roof};
+  const LotBox front_axle{length * 0.32, 0, 0.6, width - 0.2, 0.0, 0.3};
+  const LotBox rear_axle{-length * 0.32, 0, 0.6, width - 0.2, 0.0, 0.3};
+  const std::array<LotBox, 4> boxes = {body, cabin, front_axle, rear_axle};
+  const auto footprint = corners(frame, body);
+  if (!index_.clear(footprint, clearance_)) return false;
+  const double base = terrain_.height(xy);
+  for (const LotBox& box : boxes) addLotBox(frame, box, base, Surface::vehicle);
+  return true;
+}
+
+namespace {
+
+/// The footprint of a building as boxes in its lot frame, by a random shape.
+std::vector<LotBox> footprint(double front, double frontage, double depth, double height,
+                              Rng& rng) {
+  const double a0 = -frontage / 2, a1 = frontage / 2, b0 = front, b1 = front + depth;
+  const double step = rng.uniform(0.0, 1.0) * 3.0;  // other wings up to a storey lower
+  const double h2 = std::max(4.0, height - step);
+  switch (rng.integer(0, 5)) {
+    case 0:  // L: a front bar and a wing on one side reaching back
+    {
+      const double wing = frontage * rng.uniform(0.3, 0.5), bar = depth * rng.uniform(0.4, 0.6);
+      const double wa = rng.chance(0.5) ? a0 + wing / 2 : a1 - wing / 2;
+      return {{0, b0 + bar / 2, frontage, bar, 0, height},
+              {wa, b0 + depth / 2, wing, depth, 0, h2}};
+    }
+    case 1:  // notched: the middle set back from the street
+    {
+      const double side = frontage * rng.uniform(0.25, 0.35), notch = rng.uniform(2.0, 4.0);
+      return {{a0 + side / 2, b0 + depth / 2, side, depth, 0, height},
+              {a1 - side / 2, b0 + depth / 2, side, depth, 0, height},
+              {0, b0 + (notch + depth) / 2, frontage - 2 * side, depth - notch, 0, h2}};
+    }
+    case 2:  // courtyard: four wings around an open yard
+      if (depth >= 14.0 && frontage >= 16.0) {
+        const double w = 5.0;
+        return {{0, b0 + w / 2, frontage, w, 0, height},
+                {0, b1 - w / 2, frontage, w, 0, h2},
+                {a0 + w / 2, (b0 + b1) / 2, w, depth - 2 * w, 0, height},
+                {a1 - w / 2, (b0 + b1) / 2, w, depth - 2 * w, 0, height}};
+      }
+      [[fallthrough]];
+    default:  // rectangle, sometimes with a lower annex behind
+      if (rng.chance(0.4))
+        return {{0, b0 + depth * 0.35, frontage, depth * 0.7, 0, height},
+                {0, b0 + depth * 0.85, frontage * 0.6, depth * 0.3, 0, std::max(4.0, height - 6)}};
+      return {{0, b0 + depth / 2, frontage, depth, 0, height}};
+  }
+}
+
+/// Pillars, balconies and a cornice on the street facade (b = front) over a in [a0, a1].
+std::vector<LotBox> facadeRelief(double a0, double a1, double front, double height, double floor,
+                                 Rng& rng) {
+  std::vector<LotBox> boxes;
+  const double spacing = rng.uniform(3.0, 5.0);
+  const double pillar = rng.uniform(0.25, 0.45), balcony = rng.uniform(0.9, 1.3);
+  const double balcony_share = rng.uniform(0.2, 0.7);
+  const int bays = std::max(1, static_cast<int>((a1 - a0) / spacing));
+  const double bay = (a1 - a0) / bays;
+  for (int i = 0; i <= bays; ++i)
+    boxes.push_back({a0 + i * bay, front - pillar / 2, 0.5, pillar, 0, height});
+  const int floors = static_cast<int>(height / floor);
+  for (int f = 1; f < floors; ++f) {
+    for (int i = 0; i < bays; ++i) {
+      if (!rng.chance(balcony_share)) continue;
+      const double a = a0 + (i + 0.5) * bay;
+      boxes.push_back({a, front - balcony / 2, bay - 1.0, balcony, f * floor, f * floor + 1.0});
+    }
+  }
+  boxes.push_back({(a0 + a1) / 2, front - 0.25, a1 - a0 + 0.6, 0.5, height - 0.5, height + 0.3});
+  return boxes;
+}
+
+}  // namespace
+
+bool addBuilding(PropAdder& adder, const LotFrame& frame, const BuildingSpec& spec, Rng& rng) {
+  std::vector<LotBox> boxes = footprint(spec.front, spec.frontage, spec.depth, spec.height, rng);
+  const std::size_t parts = boxes.size();
+  for (std::size_t i = 0; i < parts && spec.relief; ++i) {
+    const LotBox part = boxes[i];
+    if (std::abs(part.b - part.size_b / 2 - spec.front) > 1e-9) continue;  // not on the street
+    const double a0 = part.a - part.size_a / 2, a1 = part.a + part.size_a / 2;
+    const auto extra = facadeRelief(a0, a1, spec.front, part.z1, spec.floor_height, rng);
+    boxes.insert(boxes.end(), extra.begin(), extra.end());
+  }
+  return adder.addStructure(frame, boxes, Surface::building, spec.clearance);
+}
+
+}  // namespace dcl::sim::detail

@@ -1,0 +1,208 @@
+// dataset.yaml: round trip through the writer, the conventions written into the
+// file, and the reader's errors on broken files (file, line and key named).
+
+#include <gtest/gtest.h>
+
+#include <dcl/core/error.hpp>
+#include <dcl/core/se3.hpp>
+#include <dcl/io/dataset.hpp>
+#include <dcl/io/pose_file.hpp>
+
+#include "io_test_util.hpp"
+
+namespace dcl::io {
+namespace {
+
+using test::contains;
+using test::fileError;
+
+/// A dataset with one robot of each scan source type.
+DatasetSpec mixedSpec() {
+  DatasetSpec spec;
+  spec.name = "mixed: three robots";  // a colon forces quoting
+  spec.description = "one of each: sim, kitti, bag";
+  spec.sensor = "vlp16";
+  spec.mount_height = 0.8125;
+  spec.sim = SimSpec{.world = WorldKind::aliasing,
+                     .seed = 18446744073709551615u,
+                     .motion_distortion = false,
+                     .noise = true};
+  RobotSpec a{.name = "a", .scans = {}, .ground_truth = "a/gt.tum", .start_time = 0.0};
+  RobotSpec b{
+      .name = "b",
+      .scans = {.type = ScanSourceType::kitti, .folder = "b/velodyne", .times = "b/times.txt"},
+      .ground_truth = "b/gt.tum",
+      .start_time = 12.300000000000001};
+  RobotSpec c{.name = "c",
+              .scans = {.type = ScanSourceType::bag, .file = "c.bag", .topic = "/points"},
+              .ground_truth = "",
+              .start_time = 1.0 / 3.0};
+  spec.robots = {a, b, c};
+  return spec;
+}
+
+/// A valid file, to be broken line by line in the tests below.
+constexpr const char* kGood =
+    "format_version: 1\n"          // 1
+    "name: kitti05\n"              // 2
+    "sensor:\n"                    // 3
+    "  model: hdl64\n"             // 4
+    "  mount_height: 1.73\n"       // 5
+    "robots:\n"                    // 6
+    "  - name: a\n"                // 7
+    "    ground_truth: a.tum\n"    // 8
+    "    scans:\n"                 // 9
+    "      type: kitti\n"          // 10
+    "      folder: a/velodyne\n"   // 11
+    "      times: a/times.txt\n";  // 12
+
+/// kGood with the text `from` replaced by `to`.
+std::string edited(const std::string& from, const std::string& to) {
+  std::string text = kGood;
+  const auto at = text.find(from);
+  EXPECT_NE(at, std::string::npos) << from;
+  return text.replace(at, from.size(), to);
+}
+
+TEST(Dataset, RoundTripKeepsEveryField) {
+  test::TempDir dir;
+  const DatasetSpec spec = mixedSpec();
+  writeDataset(dir.file("ds"), spec);
+  const DatasetSpec back = readDataset(dir.file("ds"));
+  EXPECT_EQ(back.name, spec.name);
+  EXPECT_EQ(back.description, spec.description);
+  EXPECT_EQ(back.sensor, "vlp16");
+  EXPECT_EQ(back.mount_height, 0.8125);
+  ASSERT_TRUE(back.sim);
+  EXPECT_EQ(back.sim->world, WorldKind::aliasing);
+  EXPECT_EQ(back.sim->seed, 18446744073709551615u);
+  EXPECT_FALSE(back.sim->motion_distortion);
+  EXPECT_TRUE(back.sim->noise);
+  ASSERT_EQ(back.robots.size(), 3u);
+  EXPECT_EQ(back.robots[0].scans.type, ScanSourceType::sim);
+  EXPECT_EQ(back.robots[1].scans.type, ScanSourceType::kitti);
+  EXPECT_EQ(back.robots[1].scans.folder, "b/velodyne");
+  EXPECT_EQ(back.robots[1].scans.times, "b/times.txt");
+  EXPECT_EQ(back.robots[1].start_time, 12.300000000000001);  // full precision
+  EXPECT_EQ(back.robots[2].scans.type, ScanSourceType::bag);
+  EXPECT_EQ(back.robots[2].scans.topic, "/points");
+  EXPECT_EQ(back.robots[2].start_time, 1.0 / 3.0);
+  EXPECT_EQ(back.robots[2].ground_truth, "");
+  EXPECT_EQ(back.folder, dir.file("ds"));
+  EXPECT_EQ(back.resolve("b/gt.tum"), dir.file("ds") + "/b/gt.tum");
+  EXPECT_EQ(back.robotIndex("c"), 2u);
+  EXPECT_FALSE(back.robotIndex("d"));
+}
+
+TEST(Dataset, ReadsTheYamlFileItselfAndWithoutSimSection) {
+  test::TempDir dir;
+  const DatasetSpec spec = readDataset(dir.write("other.yaml", kGood));
+  EXPECT_FALSE(spec.sim);
+  EXPECT_EQ(spec.name, "kitti05");
+  EXPECT_EQ(spec.robots[0].start_time, 0.0);
+  EXPECT_EQ(spec.resolve(spec.robots[0].ground_truth), dir.file("a.tum"));
+}
+
+TEST(Dataset, FileStatesTheConventions) {
+  const std::string text = datasetYaml(mixedSpec());
+  EXPECT_TRUE(contains(text, "ground_truth: T_world_sensor"));
+  EXPECT_TRUE(contains(text, "ground_truth_format: tum"));
+  EXPECT_TRUE(contains(text, "stamps: since_robot_start"));
+  EXPECT_TRUE(contains(text, "points: sensor_frame_at_firing"));
+  EXPECT_TRUE(contains(text, "units: metres_seconds_radians"));
+  EXPECT_TRUE(contains(text, "name: \"mixed: three robots\""));
+}
+
+TEST(Dataset, ReadsGroundTruthRelativeToTheFolder) {
+  test::TempDir dir;
+  core::Trajectory gt;
+  gt.push_back(0.0, Eigen::Isometry3d::Identity());
+  gt.push_back(0.1, core::makePose2d(1.0, 2.0, 0.5));
+  writeTumPoses(dir.file("ds/a/gt.tum"), gt);
+  writeDataset(dir.file("ds"), mixedSpec());
+  const DatasetSpec spec = readDataset(dir.file("ds"));
+  const core::Trajectory back = readGroundTruth(spec, 0);
+  ASSERT_EQ(back.size(), 2u);
+  EXPECT_TRUE(back.pose(1).isApprox(gt.pose(1), 1e-12));
+  EXPECT_THROW((void)readGroundTruth(spec, 2), core::Error);  // robot c has none
+}
+
+struct BadCase {
+  const char* what;
+  std::string text;
+  std::vector<std::string> message;  // parts the error must contain
+};
+
+TEST(Dataset, RejectsBrokenFilesNamingLineAndKey) {
+  const std::vector<BadCase> cases = {
+      {"missing key", edited("name: kitti05\n", ""), {":1:", "field 'name'", "missing"}},
+      {"unknown top key",
+       edited("name: kitti05\n", "name: x\nnmae: y\n"),
+       {":3:", "field 'nmae'", "unknown key", "robots"}},
+      {"unknown nested key",
+       edited("  mount_height: 1.73\n", "  mount_hieght: 1.73\n"),
+       {":5:", "field 'sensor.mount_hieght'", "unknown"}},
+      {"wrong type",
+       edited("mount_height: 1.73", "mount_height: tall"),
+       {":5:", "field 'sensor.mount_height'", "expected a number"}},
+      {"version",
+       edited("format_version: 1", "format_version: 2"),
+       {":1:", "field 'format_version'", "not supported"}},
+      {"source type",
+       edited("type: kitti", "type: rosbag"),
+       {":10:", "field 'robots[0].scans.type'", "sim, kitti or bag"}},
+      {"kitti needs times",
+       edited("      times: a/times.txt\n", ""),
+       {":10:", "field 'robots[0].scans.times'", "kitti source needs it"}},
+      {"bag needs a topic",
+       edited("type: kitti\n      folder: a/velodyne\n      times: a/times.txt",
+              "type: bag\n      file: a.bag"),
+       {"field 'robots[0].scans.topic'", "bag source needs it"}},
+      {"robots not a list", edited("robots:\n", "robots: 3\nx:\n"), {"field 'robots'", "sequence"}},
+      {"convention",
+       edited("robots:\n", "conventions:\n  ground_truth: T_sensor_world\nrobots:\n"),
+       {":7:", "field 'conventions.ground_truth'", "only 'T_world_sensor'"}},
+      {"duplicate robot",
+       std::string(kGood) + "  - name: a\n    scans: {type: sim}\n",
+       {":13:", "duplicate robot name 'a'"}},
+      {"sim seed",
+       edited("robots:\n", "sim:\n  world: city\n  seed: -1\nrobots:\n"),
+       {":8:", "field 'sim.seed'", "integer"}},
+      {"sim world",
+       edited("robots:\n", "sim:\n  world: moon\n  seed: 1\nrobots:\n"),
+       {":7:", "field 'sim.world'", "city, campus or aliasing"}},
+      {"bool",
+       edited("robots:\n", "sim:\n  world: city\n  seed: 1\n  noise: maybe\nrobots:\n"),
+       {":9:", "field 'sim.noise'", "true or false"}},
+      {"malformed", edited("  model: hdl64\n", "  model: [hdl64\n"), {"malformed YAML"}},
+      {"empty", "", {"expected a mapping"}},
+  };
+  test::TempDir dir;
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.what);
+    const std::string path = dir.write("dataset.yaml", c.text);
+    const std::string message = fileError([&] { (void)readDataset(path); });
+    EXPECT_TRUE(contains(message, path));
+    for (const auto& part : c.message) EXPECT_TRUE(contains(message, part));
+  }
+}
+
+TEST(Dataset, MissingFileIsNamed) {
+  test::TempDir dir;
+  const std::string message = fileError([&] { (void)readDataset(dir.file("nowhere")); });
+  EXPECT_TRUE(contains(message, "nowhere"));
+}
+
+TEST(Dataset, NamesParseBothWays) {
+  for (auto kind : {WorldKind::city, WorldKind::campus, WorldKind::aliasing}) {
+    EXPECT_EQ(parseWorldKind(toString(kind)), kind);
+  }
+  for (auto type : {ScanSourceType::sim, ScanSourceType::kitti, ScanSourceType::bag}) {
+    EXPECT_EQ(parseScanSourceType(toString(type)), type);
+  }
+  EXPECT_FALSE(parseWorldKind("town"));
+  EXPECT_FALSE(parseScanSourceType("pcd"));
+}
+
+}  // namespace
+}  // namespace dcl::io

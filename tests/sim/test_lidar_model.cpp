@@ -1,0 +1,77 @@
+#include <algorithm>
+#include <cmath>
+
+#include <gtest/gtest.h>
+
+#include <dcl/core/error.hpp>
+#include <dcl/sim/lidar_model.hpp>
+
+namespace dcl::sim {
+namespace {
+
+TEST(LidarModel, Hdl64HasKittiGeometry) {
+  const LidarModel m = LidarModel::hdl64();
+  EXPECT_EQ(m.name, "hdl64");
+  ASSERT_EQ(m.elevations_deg.size(), 64u);
+  EXPECT_NEAR(m.elevations_deg.back(), 2.0, 1e-9);     // top beam
+  EXPECT_NEAR(m.elevations_deg.front(), -24.8, 1e-9);  // bottom beam
+  EXPECT_TRUE(std::is_sorted(m.elevations_deg.begin(), m.elevations_deg.end()));
+  EXPECT_EQ(m.columns, 2000);
+  EXPECT_DOUBLE_EQ(m.rate_hz, 10.0);
+  EXPECT_DOUBLE_EQ(m.max_range, 120.0);
+  EXPECT_DOUBLE_EQ(m.range_noise_sigma, 0.02);
+  EXPECT_GT(m.dropout, 0.0);
+  EXPECT_LT(m.dropout, 0.1);
+  EXPECT_DOUBLE_EQ(m.mount_height, 1.73);
+  EXPECT_EQ(m.raysPerScan(), 128000u);
+  EXPECT_DOUBLE_EQ(m.sweepDuration(), 0.1);
+}
+
+TEST(LidarModel, Hdl64BlocksAreDenseAboveAndSparseBelow) {
+  const auto& e = LidarModel::hdl64().elevations_deg;
+  // Lower block: rings 0-31, about 1/2 deg apart; upper block: rings 32-63, 1/3 deg.
+  for (int r = 1; r < 32; ++r) EXPECT_NEAR(e[r] - e[r - 1], 0.515, 0.01) << r;
+  for (int r = 33; r < 64; ++r) EXPECT_NEAR(e[r] - e[r - 1], 1.0 / 3.0, 1e-9) << r;
+  EXPECT_NEAR(e[31], -8.83, 1e-9);
+  EXPECT_NEAR(e[32], 2.0 - 31.0 / 3.0, 1e-9);
+}
+
+TEST(LidarModel, Hdl64SitsAboveItsCarsBody) {
+  const LidarModel m = LidarModel::hdl64();
+  ASSERT_TRUE(m.ego_body.has_value());
+  EXPECT_FALSE(m.ego_body->contains(Eigen::Vector3d::Zero()));
+  EXPECT_LT(m.ego_body->max().z(), 0.0);                        // below the sensor
+  EXPECT_GT(m.ego_body->min().z(), -m.mount_height);            // above the road
+  EXPECT_GT(m.ego_body->sizes().x(), m.ego_body->sizes().y());  // longer than wide
+  EXPECT_FALSE(LidarModel::vlp16().ego_body.has_value());
+}
+
+TEST(LidarModel, Vlp16Has16BeamsTwoDegreesApart) {
+  const LidarModel m = LidarModel::vlp16();
+  EXPECT_EQ(m.name, "vlp16");
+  ASSERT_EQ(m.elevations_deg.size(), 16u);
+  for (std::size_t r = 0; r < 16; ++r)
+    EXPECT_NEAR(m.elevations_deg[r], -15.0 + 2.0 * static_cast<double>(r), 1e-12);
+  EXPECT_EQ(m.columns, 1800);
+  EXPECT_DOUBLE_EQ(m.rate_hz, 10.0);
+  EXPECT_DOUBLE_EQ(m.max_range, 100.0);
+  EXPECT_LT(m.mount_height, 1.73);
+  EXPECT_EQ(m.raysPerScan(), 28800u);
+}
+
+TEST(LidarModel, ByNameFindsBothAndNamesTheChoicesOtherwise) {
+  EXPECT_EQ(LidarModel::byName("hdl64").elevations_deg, LidarModel::hdl64().elevations_deg);
+  EXPECT_EQ(LidarModel::byName("vlp16").columns, 1800);
+  try {
+    (void)LidarModel::byName("os1-128");
+    FAIL() << "no error for an unknown model";
+  } catch (const core::Error& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("os1-128"), std::string::npos) << what;
+    EXPECT_NE(what.find("hdl64"), std::string::npos) << what;
+    EXPECT_NE(what.find("vlp16"), std::string::npos) << what;
+  }
+}
+
+}  // namespace
+}  // namespace dcl::sim

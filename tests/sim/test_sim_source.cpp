@@ -1,0 +1,217 @@
+// Simulated datasets: the folder holds only dataset.yaml and ground truth, and
+// scans regenerate bit-identically, across independently opened sources too,
+// one per ground-truth pose, lining up with the world at their ground truth.
+
+#include <algorithm>
+#include <filesystem>
+#include <thread>
+
+#include <gtest/gtest.h>
+
+#include <dcl/core/error.hpp>
+#include <dcl/io/dataset.hpp>
+#include <dcl/io/pose_file.hpp>
+#include <dcl/sim/sim_source.hpp>
+
+#include "dataset_test_util.hpp"
+
+namespace dcl::sim {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// Closest point to `p` on triangle abc (Voronoi regions of vertices, edges, face).
+Eigen::Vector3d closestOnTriangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                                  const Eigen::Vector3d& b, const Eigen::Vector3d& c) {
+  const Eigen::Vector3d ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return a;
+  const Eigen::Vector3d bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return b;
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) return a + d1 / (d1 - d3) * ab;
+  const Eigen::Vector3d cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return c;
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) return a + d2 / (d2 - d6) * ac;
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && d4 - d3 >= 0 && d5 - d6 >= 0) {
+    return b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b);
+  }
+  const double denom = 1.0 / (va + vb + vc);
+  return a + ab * (vb * denom) + ac * (vc * denom);
+}
+
+/// Distance from `p` to the nearest triangle of `world` (capped at `cap`).
+double distanceToWorld(const World& world, const Eigen::Vector3d& p, double cap) {
+  double best = cap;
+  for (std::size_t t = 0; t < world.triangleCount(); ++t) {
+    const auto& tri = world.triangles[t];
+    const Eigen::Vector3d a = world.vertices[tri[0]].cast<double>();
+    const Eigen::Vector3d b = world.vertices[tri[1]].cast<double>();
+    const Eigen::Vector3d c = world.vertices[tri[2]].cast<double>();
+    const Eigen::Vector3d lo = a.cwiseMin(b).cwiseMin(c).array() - best;
+    const Eigen::Vector3d hi = a.cwiseMax(b).cwiseMax(c).array() + best;
+    if ((p.array() < lo.array()).any() || (p.array() > hi.array()).any()) continue;
+    best = std::min(best, (closestOnTriangle(p, a, b, c) - p).norm());
+  }
+  return best;
+}
+
+/// The median distance to the world of every `step`-th point of `cloud` placed by `T_world_sensor`.
+double medianDistance(const World& world, const core::PointCloud& cloud,
+                      const Eigen::Isometry3d& T_world_sensor, std::size_t step, double* max) {
+  std::vector<double> d;
+  for (std::size_t i = 0; i < cloud.size(); i += step) {
+    d.push_back(distanceToWorld(world, T_world_sensor * cloud.points[i].cast<double>(), 1.0));
+  }
+  std::sort(d.begin(), d.end());
+  if (max) *max = d.back();
+  return d[d.size() / 2];
+}
+
+class SimSourceTest : public ::testing::Test {
+ protected:
+  void SetUp() override { dir_ = test::freshDir(); }
+
+  [[nodiscard]] io::DatasetSpec write(const Preset& preset, const SimDatasetOptions& o = {}) const {
+    return writeSimDataset(dir_.string(), preset, o);
+  }
+
+  fs::path dir_;
+};
+
+TEST_F(SimSourceTest, FolderHoldsOnlyDescriptionAndGroundTruth) {
+  const io::DatasetSpec spec = write(test::tinyPreset());
+  std::uintmax_t bytes = 0;
+  std::vector<std::string> files;
+  for (const auto& e : fs::recursive_directory_iterator(dir_)) {
+    if (!e.is_regular_file()) continue;
+    bytes += e.file_size();
+    files.push_back(fs::relative(e.path(), dir_).string());
+  }
+  std::sort(files.begin(), files.end());
+  EXPECT_EQ(files,
+            (std::vector<std::string>{"dataset.yaml", "ground_truth/a.tum", "ground_truth/b.tum"}));
+  EXPECT_LT(bytes, 8000u);
+  ASSERT_TRUE(spec.sim);
+  EXPECT_EQ(spec.sim->seed, 7u);
+  EXPECT_EQ(spec.sim->world, io::WorldKind::city);
+  EXPECT_EQ(spec.sensor, "vlp16");
+  EXPECT_EQ(spec.robots[1].scans.type, io::ScanSourceType::sim);
+}
+
+TEST_F(SimSourceTest, OneScanPerGroundTruthPoseAtItsStamp) {
+  const io::DatasetSpec spec = write(test::tinyPreset(7, 5));
+  const auto sources = openDatasetScans(spec);
+  ASSERT_EQ(sources.size(), 2u);
+  const core::Trajectory gt = io::readGroundTruth(spec, 1);
+  ASSERT_EQ(sources[1]->size(), gt.size());
+  EXPECT_EQ(sources[1]->size(), 5u);
+  EXPECT_EQ(sources[1]->stamp(4), gt.stamp(4));
+  const core::PointCloud scan = sources[1]->scan(4);
+  EXPECT_GT(scan.size(), 10000u);  // VLP-16: 28,800 rays, most hit the street
+  EXPECT_TRUE(scan.consistent());
+  EXPECT_TRUE(scan.hasRing() && scan.hasTime() && scan.hasIntensity());
+  EXPECT_THROW((void)sources[1]->scan(5), core::Error);
+  EXPECT_THROW((void)sources[1]->stamp(5), core::Error);
+}
+
+TEST_F(SimSourceTest, RegenerationIsBitIdenticalAcrossIndependentSources) {
+  const io::DatasetSpec spec = write(test::tinyPreset());
+  const auto first = openDatasetScans(spec);
+  const core::PointCloud a2 = first[0]->scan(2);
+  EXPECT_TRUE(test::sameCloud(a2, first[0]->scan(2)));  // the same scan twice
+  // A second world built from the files alone, scanning in another order and in parallel.
+  const auto second = openDatasetScans(io::readDataset(dir_.string()), {.parallel = false});
+  core::PointCloud b1, a2_again;
+  std::thread t1([&] { b1 = second[1]->scan(1); });
+  std::thread t2([&] { a2_again = second[0]->scan(2); });
+  t1.join();
+  t2.join();
+  EXPECT_TRUE(test::sameCloud(a2, a2_again));
+  EXPECT_TRUE(test::sameCloud(first[1]->scan(1), b1));
+  // Different scans differ (pose and noise seed).
+  EXPECT_FALSE(test::sameCloud(a2, first[0]->scan(3)));
+}
+
+TEST_F(SimSourceTest, SeedChangesScans) {
+  const auto seven = openDatasetScans(write(test::tinyPreset(7)));
+  const core::PointCloud scan7 = seven[0]->scan(0);
+  dir_ = test::freshDir("_other_seed");
+  const auto eight = openDatasetScans(write(test::tinyPreset(8)));
+  EXPECT_FALSE(test::sameCloud(scan7, eight[0]->scan(0)));
+}
+
+TEST_F(SimSourceTest, ScanSeedsAreDistinct) {
+  EXPECT_NE(scanSeed(1, 0, 1), scanSeed(1, 1, 0));
+  EXPECT_NE(scanSeed(1, 0, 0), scanSeed(2, 0, 0));
+  EXPECT_EQ(scanSeed(5, 2, 9), scanSeed(5, 2, 9));
+}
+
+TEST_F(SimSourceTest, ScansAtTheirGroundTruthLieOnTheWorld) {
+  const io::DatasetSpec spec =
+      write(test::tinyPreset(7, 4), {.motion_distortion = false, .noise = false});
+  const SimWorld world(spec);
+  const core::Trajectory gt = io::readGroundTruth(spec, 0);  // as a user reads it
+  const core::PointCloud scan = world.scan(0, 3);
+  double max = 0.0;
+  const double median = medianDistance(world.world(), scan, gt.pose(3), 97, &max);
+  EXPECT_LT(median, 1e-5);  // float precision of the points: exact
+  EXPECT_LT(max, 1e-4);
+  // Control: 0.2 m off along each axis, most points leave the surfaces.
+  Eigen::Isometry3d off = gt.pose(3);
+  off.translation() += Eigen::Vector3d(0.2, 0.2, 0.2);
+  EXPECT_GT(medianDistance(world.world(), scan, off, 97, nullptr), 0.02);
+}
+
+TEST_F(SimSourceTest, DistortedPointsLieOnTheWorldAtTheirFiringPose) {
+  const io::DatasetSpec spec = write(test::tinyPreset(7, 4), {.noise = false});
+  const SimWorld world(spec);
+  const core::Trajectory& gt = world.groundTruth(0);
+  const core::PointCloud scan = world.scan(0, 1);
+  ASSERT_TRUE(scan.hasTime());
+  std::vector<double> at_firing, at_stamp;
+  for (std::size_t i = 0; i < scan.size(); i += 31) {
+    const Eigen::Vector3d p = scan.points[i].cast<double>();
+    const auto T_firing = gt.at(gt.stamp(1) + scan.time[i]);
+    ASSERT_TRUE(T_firing);
+    at_firing.push_back(distanceToWorld(world.world(), *T_firing * p, 1.0));
+    at_stamp.push_back(distanceToWorld(world.world(), gt.pose(1) * p, 1.0));
+  }
+  std::sort(at_firing.begin(), at_firing.end());
+  std::sort(at_stamp.begin(), at_stamp.end());
+  EXPECT_LT(at_firing.back(), 1e-3);
+  // The robot moves 2 m/s along the street: the sweep's end is 0.2 m from its
+  // start, which moves points on surfaces across the street (ground and facades
+  // along it barely notice).
+  EXPECT_GT(at_stamp.back(), 0.01);
+}
+
+TEST_F(SimSourceTest, NoisyScansLineUpWithinTheNoise) {
+  const io::DatasetSpec spec = write(test::tinyPreset(7, 4), {.motion_distortion = false});
+  const SimWorld world(spec);
+  const core::PointCloud scan = world.scan(1, 2);
+  double max = 0;
+  const double median = medianDistance(world.world(), scan, world.groundTruth(1).pose(2), 97, &max);
+  // Range noise of 2 cm sigma along the beam; the distance to the surface is
+  // smaller at grazing incidence (most ground returns), so the median is a few mm.
+  EXPECT_GT(median, 1e-4);  // noise-free points are within 1e-5
+  EXPECT_LT(median, 0.02);
+  EXPECT_LT(max, 0.1);  // 5 sigma
+}
+
+TEST_F(SimSourceTest, OpensFileRobotsThroughIoAndRefusesNonSimDatasets) {
+  io::DatasetSpec spec = write(test::tinyPreset());
+  EXPECT_NE(openRobotScans(spec, 0)->describe().find("simulated robot 'a'"), std::string::npos);
+  spec.sim.reset();
+  EXPECT_THROW(SimWorld{spec}, core::Error);
+  spec.robots[0].scans = {
+      .type = io::ScanSourceType::kitti, .folder = "nowhere", .times = "none.txt"};
+  EXPECT_THROW((void)openRobotScans(spec, 0), core::FileError);  // went to io's KITTI reader
+}
+
+}  // namespace
+}  // namespace dcl::sim
