@@ -256,6 +256,25 @@ class Config(unittest.TestCase):
         self.assertIn(f.name, err)
 
 
+class Demo(unittest.TestCase):
+    """dcl-slam demo: runs with no arguments but an output folder, writes its metrics."""
+
+    def test_demo_writes_metrics_and_swarm_dataset(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            _, out, _ = run("demo", "--out", tmp)
+            with open(os.path.join(tmp, "metrics.json")) as f:
+                metrics = json.load(f)
+            self.assertEqual([m["method"] for m in metrics["evaluation"]], ["ORB-SLAM2", "S-PTAM"])
+            self.assertAlmostEqual(metrics["evaluation"][0]["kitti_translation_percent"], 0.70,
+                                   delta=0.01)
+            self.assertEqual(metrics["map"]["scans"], 6)
+            self.assertEqual(len(metrics["pose_graph"]), 4)
+            self.assertEqual(len(metrics["swarm"]["robots"]), 3)
+            for name in ("kitti00_map.ply", "swarm/dataset.yaml", "swarm/preview_world.png"):
+                self.assertTrue(os.path.exists(os.path.join(tmp, name)), name)
+        self.assertIn("ATE se3", out)
+
+
 class Errors(unittest.TestCase):
     """Bad input: a non-zero exit and one line naming the file and the problem."""
 
