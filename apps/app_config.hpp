@@ -7,6 +7,10 @@
 #include <string>
 #include <vector>
 
+#include <dcl/odometry/external_odometry.hpp>
+#include <dcl/odometry/lidar_odometry.hpp>
+#include <dcl/odometry/local_mapper.hpp>
+
 namespace dcl::apps {
 
 /// Trajectory evaluation defaults (`eval ate`, `eval rpe`, and runs that report ATE).
@@ -34,13 +38,19 @@ struct EvalSection {
 
 /// Everything `dcl-slam` can be configured with.
 struct AppConfig {
-  std::string log_level = "info";  ///< trace | debug | info | warn | error | off
-  EvalSection eval;                ///< trajectory evaluation
+  std::string log_level = "info";             ///< trace | debug | info | warn | error | off
+  EvalSection eval;                           ///< trajectory evaluation
+  odometry::OdometryConfig odometry;          ///< the built-in LiDAR odometry
+  odometry::ExternalOdometryConfig external;  ///< poses from another front-end
+  odometry::LocalMapperConfig mapper;         ///< keyframes, intra-robot loops, local graph
 
   template <class Visitor>
   void visit(Visitor& v) {
     v.field("log_level", log_level, "trace | debug | info | warn | error | off");
     v.section("eval", eval, "trajectory evaluation");
+    v.section("odometry", odometry, "the built-in LiDAR odometry");
+    v.section("external", external, "external odometry (poses from another front-end)");
+    v.section("mapper", mapper, "keyframes, intra-robot loop closure, local pose graph");
   }
 };
 

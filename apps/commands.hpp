@@ -31,4 +31,10 @@ void addSimulateCommand(CLI::App& app);
 /// `bench sim` (on the `bench` subcommand): the scan stream of a dataset, timed.
 void addBenchSimCommand(CLI::App& bench);
 
+/// `odometry`: one robot's front-end alone.
+void addOdometryCommand(CLI::App& app, const AppConfig& config);
+
+/// `bench odometry`: the LiDAR odometry's time per frame over a whole sequence.
+void addBenchOdometryCommand(CLI::App& bench, const AppConfig& config);
+
 }  // namespace dcl::apps

@@ -55,9 +55,11 @@ int run(int argc, char** argv) {
   dcl::apps::addVersionCommand(app);
   dcl::apps::addDemoCommand(app, config);
   dcl::apps::addSimulateCommand(app);
+  dcl::apps::addOdometryCommand(app, config);
   auto* bench = app.add_subcommand("bench", "benchmarks of the system's parts");
   bench->require_subcommand(1);
   dcl::apps::addBenchSimCommand(*bench);
+  dcl::apps::addBenchOdometryCommand(*bench, config);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

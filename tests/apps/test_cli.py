@@ -275,6 +275,53 @@ class Demo(unittest.TestCase):
         self.assertIn("ATE se3", out)
 
 
+class Odometry(unittest.TestCase):
+    """dcl-slam odometry: one robot of a simulated dataset, built-in and external front-ends."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.dataset = os.path.join(cls.tmp.name, "demo")
+        run("simulate", "--preset", "demo", "--out", cls.dataset)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def run_odometry(self, name, *extra):
+        out = os.path.join(self.tmp.name, name)
+        _, stdout, _ = run("odometry", "--dataset", self.dataset, "--robot", "b", "--out", out,
+                           "--max-frames", "200", *extra)
+        with open(os.path.join(out, "metrics.json")) as f:
+            return out, stdout, json.load(f)
+
+    def test_lidar_odometry_tracks_the_ground_truth(self):
+        out, stdout, metrics = self.run_odometry("lidar")
+        self.assertEqual(metrics["odometry"], "lidar")
+        self.assertEqual(metrics["frames"]["frames"], 200)
+        self.assertEqual(metrics["frames"]["accepted"], 200)
+        self.assertGreater(metrics["frames"]["distance_m"], 20.0)
+        # 20 s of VLP-16 driving in the demo campus: centimetres, not decimetres.
+        self.assertLess(metrics["accuracy"]["odometry"]["ate_se3_translation_m"]["rmse"], 0.10)
+        self.assertGreater(metrics["mapper"]["keyframes"], 10)
+        for name in ("trajectory.tum", "trajectory.kitti", "times.txt", "odometry.tum",
+                     "keyframes/poses.tum", "keyframes/graph.g2o", "keyframes/000000.bin"):
+            self.assertTrue(os.path.exists(os.path.join(out, name)), name)
+        self.assertIn("keyframes", stdout)
+
+    def test_external_odometry_replays_a_pose_file(self):
+        gt = os.path.join(self.dataset, "ground_truth", "b.tum")
+        _, _, metrics = self.run_odometry("external", "--external", gt)
+        self.assertEqual(metrics["odometry"], "external")
+        self.assertLess(metrics["accuracy"]["odometry"]["ate_se3_translation_m"]["rmse"], 1e-6)
+
+    def test_unknown_robot_is_named(self):
+        code, _, err = run("odometry", "--dataset", self.dataset, "--robot", "zz", "--out",
+                           os.path.join(self.tmp.name, "x"), check=False)
+        self.assertEqual(code, 1)
+        self.assertIn("'zz'", err)
+
+
 class Errors(unittest.TestCase):
     """Bad input: a non-zero exit and one line naming the file and the problem."""
 

@@ -1,0 +1,62 @@
+#pragma once
+
+/// The centralized pose-graph solver (Ceres): the reference every distributed
+/// result is measured against (DESIGN.md §5), and the smoother of a robot's
+/// local graph. Each pose is a unit quaternion (Ceres' EigenQuaternionManifold)
+/// and a translation; each factor's residual is the SE(3) log of the
+/// measurement error (pose_graph.hpp), whitened by the square root of its
+/// information. Ceres stays inside the source file.
+
+#include <cstddef>
+#include <string>
+
+#include <dcl/backend/pose_graph.hpp>
+
+namespace dcl::backend {
+
+/// How the centralized solver runs.
+struct SolverConfig {
+  int max_iterations = 100;  ///< Levenberg-Marquardt iterations at most
+  int threads = 1;           ///< threads for Jacobian evaluation and the linear solver
+  /// Robust loss on loop factors only (odometry is trusted): "none", "huber" or "cauchy".
+  std::string loop_loss = "none";
+  /// Scale of the loss in whitened units (sqrt of chi-square): 3.55 = sqrt of
+  /// chi-square(6) at 95 %, so a loop consistent with its covariance is not down-weighted.
+  double loss_scale = 3.55;
+  /// Fix the lowest node when the graph fixes none (else the gauge is free and
+  /// Levenberg-Marquardt damping alone pins it).
+  bool fix_lowest = true;
+  double function_tolerance = 1e-8;  ///< stop when the relative cost change falls below
+
+  /// Lists the fields for the YAML loader (io/config.hpp).
+  template <class V>
+  void visit(V& v) {
+    v.field("max_iterations", max_iterations, "Levenberg-Marquardt iterations at most");
+    v.field("threads", threads, "threads for Jacobians and the linear solver");
+    v.field("loop_loss", loop_loss, "robust loss on loop factors: none, huber or cauchy");
+    v.field("loss_scale", loss_scale, "scale of the loss, whitened units (sqrt chi-square)");
+    v.field("fix_lowest", fix_lowest, "fix the lowest node when the graph fixes none");
+    v.field("function_tolerance", function_tolerance, "stop below this relative cost change");
+  }
+};
+
+/// What a solve did. Costs are g2o's chi-square, sum of r^T Omega r over the
+/// factors that connect two nodes, without the robust loss, so that they
+/// compare with published figures.
+struct SolverSummary {
+  double initial_cost = 0.0;        ///< chi-square before
+  double final_cost = 0.0;          ///< chi-square after
+  int iterations = 0;               ///< iterations run (successful and unsuccessful)
+  bool converged = false;           ///< a tolerance was met (not the iteration cap or a failure)
+  double time = 0.0;                ///< s, wall time of the solve
+  std::size_t factors = 0;          ///< factors in the problem
+  std::size_t skipped_factors = 0;  ///< factors naming a node the graph does not hold
+  std::string message;              ///< Ceres' termination message
+};
+
+/// Optimises every node estimate of `graph` in place. Fixed nodes keep their
+/// estimates; with `config.fix_lowest` and no fixed node, the lowest key is
+/// fixed (the graph itself is not marked). Throws core::Error for an unknown loss name.
+SolverSummary solveCentralized(PoseGraph& graph, const SolverConfig& config = {});
+
+}  // namespace dcl::backend

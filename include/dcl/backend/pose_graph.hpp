@@ -1,0 +1,139 @@
+#pragma once
+
+/// The pose graph every back-end stage works on (paper §III-C): nodes are
+/// keyframe poses named by robot and keyframe (core::PoseKey), factors are
+/// relative-pose measurements between them (odometry, intra-robot loops,
+/// inter-robot loops). The local graph of one robot and the swarm's joint
+/// graph are both a PoseGraph; the centralized solver and, later, DGS read it.
+///
+/// A factor measures T_from_to, the pose of `to` in the frame of `from`, with an
+/// information matrix over the tangent [rho; phi] (g2o's EDGE_SE3:QUAT order).
+/// Its residual is r = log(T_from_to^-1 T_world_from^-1 T_world_to) and its cost
+/// r^T Omega r, g2o's chi-square convention, so costs compare with published ones.
+
+#include <Eigen/Geometry>
+#include <cstddef>
+#include <map>
+#include <set>
+#include <string_view>
+#include <vector>
+
+#include <dcl/core/ids.hpp>
+#include <dcl/core/se3.hpp>
+
+namespace dcl::io {
+struct G2oGraph;
+}
+
+namespace dcl::backend {
+
+/// What a factor measures; the back-end treats loops differently (robust
+/// losses, PCM for inter-robot ones), odometry never.
+enum class FactorKind {
+  odometry,    ///< consecutive keyframes of one robot
+  intra_loop,  ///< a loop closure within one robot's trajectory
+  inter_loop,  ///< a loop closure between two robots
+};
+
+/// "odometry", "intra_loop" or "inter_loop".
+std::string_view toString(FactorKind kind);
+
+/// True for intra_loop and inter_loop.
+constexpr bool isLoop(FactorKind kind) {
+  return kind != FactorKind::odometry;
+}
+
+/// One relative-pose measurement between two nodes.
+struct Factor {
+  core::PoseKey from;  ///< the node the measurement is expressed in
+  core::PoseKey to;    ///< the measured node
+  /// The pose of `to` in the frame of `from`.
+  Eigen::Isometry3d T_from_to = Eigen::Isometry3d::Identity();
+  /// Inverse covariance over the tangent [rho; phi], symmetric positive semi-definite.
+  core::Matrix6d information = core::Matrix6d::Identity();
+  FactorKind kind = FactorKind::odometry;  ///< default odometry
+};
+
+/// Nodes with their current estimates T_world_node, factors, and the nodes held fixed.
+///
+/// A factor may name a node the graph does not hold (a neighbour's pose in a
+/// robot's local view of a distributed graph); solvers skip such factors.
+class PoseGraph {
+ public:
+  /// Adds node `key` at `T_world_node`; a node that exists gets the new estimate.
+  void addNode(const core::PoseKey& key, const Eigen::Isometry3d& T_world_node);
+
+  /// Appends a factor (its ends need not be nodes yet).
+  void addFactor(const Factor& factor);
+
+  /// True when `key` is a node.
+  [[nodiscard]] bool hasNode(const core::PoseKey& key) const { return nodes_.contains(key); }
+
+  /// The estimate of node `key`; throws core::Error when there is no such node.
+  [[nodiscard]] const Eigen::Isometry3d& estimate(const core::PoseKey& key) const;
+
+  /// Replaces the estimate of node `key`; throws core::Error when there is no such node.
+  void setEstimate(const core::PoseKey& key, const Eigen::Isometry3d& T_world_node);
+
+  /// Holds node `key` fixed (the gauge); it need not be a node yet.
+  void fix(const core::PoseKey& key) { fixed_.insert(key); }
+
+  /// Lets node `key` move again.
+  void unfix(const core::PoseKey& key) { fixed_.erase(key); }
+
+  /// True when node `key` is held fixed.
+  [[nodiscard]] bool isFixed(const core::PoseKey& key) const { return fixed_.contains(key); }
+
+  /// Every node and its estimate T_world_node, by key (robot, then keyframe).
+  [[nodiscard]] const std::map<core::PoseKey, Eigen::Isometry3d>& nodes() const { return nodes_; }
+
+  /// Every factor, in the order added.
+  [[nodiscard]] const std::vector<Factor>& factors() const { return factors_; }
+
+  /// The fixed nodes.
+  [[nodiscard]] const std::set<core::PoseKey>& fixedNodes() const { return fixed_; }
+
+  /// The number of nodes.
+  [[nodiscard]] std::size_t size() const { return nodes_.size(); }
+
+  /// True when the factor's two ends are nodes of this graph.
+  [[nodiscard]] bool connects(const Factor& factor) const;
+
+ private:
+  std::map<core::PoseKey, Eigen::Isometry3d> nodes_;
+  std::vector<Factor> factors_;
+  std::set<core::PoseKey> fixed_;
+};
+
+/// The residual of `factor` at the given estimates: log(T_from_to^-1 T_world_from^-1 T_world_to).
+core::Vector6d factorResidual(const Factor& factor, const Eigen::Isometry3d& T_world_from,
+                              const Eigen::Isometry3d& T_world_to);
+
+/// g2o's chi-square of the graph: the sum of r^T Omega r over the factors whose
+/// two ends are nodes (no robust loss).
+double graphCost(const PoseGraph& graph);
+
+/// The information matrix of a covariance: its inverse, with every eigenvalue
+/// of the covariance raised to at least `min_variance` first, so a singular or
+/// slightly indefinite covariance gives a finite, positive-definite information.
+core::Matrix6d informationFromCovariance(const core::Matrix6d& covariance,
+                                         double min_variance = 1e-9);
+
+/// How g2o vertex ids map to pose keys when converting.
+enum class VertexIds {
+  automatic,  ///< to g2o: plain keyframe indices when every node is robot 0, else symbols
+  plain,      ///< to g2o: the keyframe index (throws core::Error for a graph of several robots)
+  symbols,    ///< to g2o: GTSAM symbols (core::PoseKey::pack)
+};
+
+/// A pose graph from a g2o / TORO graph read by io::readG2o. Vertex ids that
+/// are GTSAM symbols become their robot and keyframe, plain ids robot 0 and
+/// keyframe id. Factor kinds: ends of different robots give inter_loop,
+/// consecutive keyframes of one robot odometry, others intra_loop. `FIX` lines
+/// become fixed nodes; TORO `EQUIV` lines are ignored.
+PoseGraph fromG2o(const io::G2oGraph& g2o);
+
+/// The graph as an io::G2oGraph (3D), for io::writeG2o; vertex ids as `ids` says.
+io::G2oGraph toG2o(const PoseGraph& graph, VertexIds ids = VertexIds::automatic);
+
+}  // namespace dcl::backend

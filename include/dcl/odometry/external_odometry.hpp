@@ -1,0 +1,103 @@
+#pragma once
+
+/// Odometry from another front-end (paper §III-A: the framework is front-end
+/// agnostic): poses recorded by LIO-SAM, FAST-LIO2, a ground-truth system or
+/// any other source, in a TUM or KITTI file or a ROS1 bag topic
+/// (nav_msgs/Odometry, geometry_msgs/PoseStamped), replayed at the scan times.
+///
+/// The source gives T_world_body at its own stamps. For a scan at `stamp` the
+/// pose is interpolated there (core::Trajectory::at), moved to the LiDAR by a
+/// fixed extrinsic, T_world_sensor = T_world_body T_body_sensor, and
+/// re-expressed in the odometry frame, the sensor frame of the first frame
+/// processed: T_odom_sensor = T_world_sensor(first)^-1 T_world_sensor(stamp).
+/// The extrinsic is needed when the source tracks another body than the LiDAR
+/// (an IMU, or KITTI's left camera: T_body_sensor = Tr, the velodyne-to-camera
+/// calibration); it is the identity when the poses are the LiDAR's own.
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <optional>
+#include <string>
+
+#include <dcl/core/trajectory.hpp>
+#include <dcl/odometry/odometry.hpp>
+
+namespace dcl::odometry {
+
+/// Where the external poses come from and how they are used.
+struct ExternalOdometryConfig {
+  std::string file = "";        ///< pose file or bag; default none (a trajectory is given in code)
+  std::string format = "auto";  ///< "tum", "kitti", "bag" or "auto" (by extension: .bag, else tum)
+  std::string times = "";       ///< kitti: the times file (one stamp a line); default none
+  std::string topic = "";       ///< bag: the nav_msgs/Odometry or PoseStamped topic; default none
+  /// T_body_sensor as x y z qx qy qz qw: the LiDAR's pose in the source's body frame;
+  /// default identity (the poses are the LiDAR's).
+  Eigen::Matrix<double, 7, 1> T_body_sensor =
+      (Eigen::Matrix<double, 7, 1>() << 0, 0, 0, 0, 0, 0, 1).finished();
+  /// m per sqrt(m): translation standard deviation of the reported motion
+  /// covariance, a random walk in distance travelled (the source reports none).
+  double translation_sigma = 0.01;
+  /// rad per sqrt(m): rotation standard deviation of the reported motion covariance.
+  double rotation_sigma = 1e-3;
+
+  /// Lists the fields for the YAML loader (io/config.hpp).
+  template <class V>
+  void visit(V& v) {
+    v.field("file", file, "pose file or ROS1 bag of the external front-end");
+    v.field("format", format, "tum, kitti, bag or auto (by extension)");
+    v.field("times", times, "kitti: times file");
+    v.field("topic", topic, "bag: nav_msgs/Odometry or geometry_msgs/PoseStamped topic");
+    v.field("T_body_sensor", T_body_sensor,
+            "LiDAR pose in the source's body frame, x y z qx qy qz qw");
+    v.field("translation_sigma", translation_sigma, "m per sqrt(m) of travel, motion covariance");
+    v.field("rotation_sigma", rotation_sigma, "rad per sqrt(m) of travel, motion covariance");
+  }
+};
+
+/// Reads the trajectory `config` names (TUM or KITTI file via the io readers, or a
+/// bag topic). Throws core::FileError naming the file when it cannot be read, and
+/// core::Error for an unknown format or a bag without a topic.
+core::Trajectory loadExternalTrajectory(const ExternalOdometryConfig& config);
+
+/// Replays recorded poses as an Odometry.
+class ExternalOdometry final : public Odometry {
+ public:
+  /// Replays `T_world_body` (sorted by stamp; rotations are projected onto SO(3),
+  /// KITTI files print 7 digits). Throws core::Error when it is empty or unsorted.
+  explicit ExternalOdometry(core::Trajectory T_world_body,
+                            const ExternalOdometryConfig& config = {});
+
+  /// Loads the trajectory `config.file` names (loadExternalTrajectory).
+  explicit ExternalOdometry(const ExternalOdometryConfig& config);
+
+  /// The pose at `stamp` (the scan is not used). A stamp outside the
+  /// trajectory, not finite, or before the previous frame's gives
+  /// health.accepted = false and the pose held. The covariance is the model of
+  /// the config (random walk in the distance moved since the previous frame).
+  OdometryResult process(double stamp, const core::PointCloud& scan) override;
+
+  /// The latest pose, T_odom_sensor.
+  [[nodiscard]] Eigen::Isometry3d pose() const override { return T_odom_sensor_; }
+
+  /// "external".
+  [[nodiscard]] std::string name() const override { return "external"; }
+
+  /// The first and last stamp of the replayed trajectory.
+  [[nodiscard]] double firstStamp() const { return T_world_body_.stamps().front(); }
+  [[nodiscard]] double lastStamp() const {
+    return T_world_body_.stamps().back();
+  }  ///< see firstStamp
+
+ private:
+  [[nodiscard]] OdometryResult held(double stamp, std::string problem) const;
+  [[nodiscard]] core::Matrix6d motionCovariance(const Eigen::Isometry3d& T_step) const;
+
+  core::Trajectory T_world_body_;
+  Eigen::Isometry3d T_body_sensor_;
+  ExternalOdometryConfig config_;
+  std::optional<Eigen::Isometry3d> T_world_odom_;  ///< set by the first usable frame
+  std::optional<double> last_stamp_;
+  Eigen::Isometry3d T_odom_sensor_ = Eigen::Isometry3d::Identity();
+};
+
+}  // namespace dcl::odometry

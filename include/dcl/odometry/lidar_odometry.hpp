@@ -1,0 +1,123 @@
+#pragma once
+
+/// The built-in LiDAR-only odometry (paper §III-A), after KISS-ICP (Vizzo et
+/// al. 2023): deskew under constant velocity, voxel-downsample, predict with
+/// constant velocity, register point-to-plane against a local voxel hash map
+/// with an adaptive threshold, then grow and cull the map.
+
+#include <Eigen/Geometry>
+#include <optional>
+#include <span>
+#include <string>
+
+#include <dcl/core/point_cloud.hpp>
+#include <dcl/core/se3.hpp>
+#include <dcl/odometry/odometry.hpp>
+#include <dcl/odometry/registration.hpp>
+#include <dcl/odometry/voxel_map.hpp>
+
+namespace dcl::odometry {
+
+/// Everything the LiDAR odometry can be told.
+struct OdometryConfig {
+  double max_range = 100.0;       ///< m, farther points are dropped; also the map's radius
+  double min_range = 2.0;         ///< m, nearer points (the ego vehicle) are dropped
+  double voxel_size = 0.0;        ///< m, map voxel edge; 0 = max_range / 100 (KISS-ICP's rule)
+  int max_points_per_voxel = 20;  ///< map points a voxel keeps (KISS-ICP: 20)
+  bool deskew = true;             ///< undo the motion during the sweep when points carry times
+  std::size_t min_points = 100;   ///< a scan with fewer usable points is skipped
+  double min_translation_sigma = 0.01;  ///< m, floor of the reported per-frame covariance
+  double min_rotation_sigma = 1e-3;     ///< rad, floor of the reported per-frame covariance
+  double max_sigma = 10.0;  ///< m or rad, ceiling of the covariance in unobservable directions
+  AdaptiveThresholdConfig threshold{};  ///< KISS-ICP's adaptive correspondence threshold
+  IcpConfig icp{};  ///< registration (the odometry overrides its distance and kernel per frame)
+
+  /// The map voxel edge after applying the `voxel_size = 0` rule.
+  [[nodiscard]] double mapVoxelSize() const {
+    return voxel_size > 0.0 ? voxel_size : max_range / 100.0;
+  }
+
+  /// Lists the fields for the YAML loader (io/config.hpp).
+  template <class V>
+  void visit(V& v) {
+    v.field("max_range", max_range, "m, farther points are dropped; also the map's radius");
+    v.field("min_range", min_range, "m, nearer points (the ego vehicle) are dropped");
+    v.field("voxel_size", voxel_size, "m, map voxel edge; 0 = max_range / 100");
+    v.field("max_points_per_voxel", max_points_per_voxel, "map points a voxel keeps");
+    v.field("deskew", deskew, "undo the motion during the sweep when points carry times");
+    v.field("min_points", min_points, "a scan with fewer usable points is skipped");
+    v.field("min_translation_sigma", min_translation_sigma, "m, covariance floor");
+    v.field("min_rotation_sigma", min_rotation_sigma, "rad, covariance floor");
+    v.field("max_sigma", max_sigma, "m or rad, covariance ceiling in unobservable directions");
+    v.section("threshold", threshold, "adaptive correspondence threshold");
+    v.section("icp", icp, "registration");
+  }
+};
+
+/// KISS-ICP-style LiDAR odometry. Not thread-safe; registration itself runs on
+/// TBB's threads (limit them with tbb::global_control).
+class LidarOdometry final : public Odometry {
+ public:
+  /// An odometry with `config`; the first scan defines the odometry frame.
+  explicit LidarOdometry(const OdometryConfig& config = {});
+
+  /// Registers the scan taken at `stamp` (see Odometry::process).
+  OdometryResult process(double stamp, const core::PointCloud& scan) override;
+
+  /// The latest pose, T_odom_sensor.
+  [[nodiscard]] Eigen::Isometry3d pose() const override { return T_odom_sensor_; }
+
+  /// "lidar".
+  [[nodiscard]] std::string name() const override { return "lidar"; }
+
+  /// The local map, in the odometry frame.
+  [[nodiscard]] const VoxelHashMap& localMap() const { return map_; }
+
+  /// The sensor's twist [v; omega] in its own frame (m/s, rad/s), from the last two frames.
+  [[nodiscard]] const core::Vector6d& velocity() const { return velocity_; }
+
+  /// The configuration in use.
+  [[nodiscard]] const OdometryConfig& config() const { return config_; }
+
+ private:
+  /// Why a frame cannot be used before registration; none when it can.
+  [[nodiscard]] std::optional<std::string> checkStamp(double stamp) const;
+  /// The result of a frame that does not update the state.
+  [[nodiscard]] OdometryResult skipped(double stamp, std::string problem) const;
+  /// The ICP settings for this frame: 3 sigma gate, sigma / 3 kernel (KISS-ICP).
+  [[nodiscard]] IcpConfig frameIcpConfig() const;
+  /// The covariance of a frame's motion from its registration.
+  [[nodiscard]] core::Matrix6d covarianceOf(const RegistrationResult& registration) const;
+  /// Re-deskews the first sweep once a velocity is known and anchors the odometry frame at its
+  /// stamp.
+  void redoFirstSweep();
+  /// The constant-velocity prediction of the sensor pose at `time` (s, absolute).
+  [[nodiscard]] Eigen::Isometry3d predictReference(double time) const;
+  /// Commits an accepted mid-sweep pose (the sweep's middle is `t_mid` s after
+  /// `stamp`): velocity, adaptive threshold, map, and the pose at the stamp.
+  void commit(double stamp, double t_mid, const Eigen::Isometry3d& T_odom_reference,
+              const Eigen::Isometry3d& T_predicted, std::span<const Eigen::Vector3d> frame);
+
+  OdometryConfig config_;
+  VoxelHashMap map_;
+  AdaptiveThreshold threshold_;
+  /// The sensor at the last accepted stamp.
+  Eigen::Isometry3d T_odom_sensor_ = Eigen::Isometry3d::Identity();
+  /// The sensor at the middle of the last accepted sweep: registration happens
+  /// there, because deskewing to mid-sweep makes a velocity error distort the
+  /// scan symmetrically (no net shift), which keeps the velocity -> deskew ->
+  /// registration -> velocity loop stable. Deskewing to the sweep's start feeds
+  /// half a sweep of velocity error back into the pose and oscillates.
+  Eigen::Isometry3d T_odom_reference_ = Eigen::Isometry3d::Identity();
+  core::Vector6d velocity_ = core::Vector6d::Zero();
+  std::optional<double> last_stamp_;           ///< s, of the last accepted frame
+  std::optional<double> last_reference_time_;  ///< s, mid-sweep of the last accepted frame
+  /// The first sweep (with per-point times), kept until the second frame gives a velocity.
+  struct FirstSweep {
+    core::PointCloud cloud;  ///< cleaned, in the sensor frame at firing times
+    double t_mid = 0.0;      ///< s after the stamp, where it was registered
+  };
+  std::optional<FirstSweep> first_sweep_;
+};
+
+}  // namespace dcl::odometry

@@ -1,0 +1,108 @@
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include <dcl/core/error.hpp>
+#include <dcl/io/pose_file.hpp>
+#include <dcl/io/rosbag.hpp>
+#include <dcl/odometry/external_odometry.hpp>
+
+namespace dcl::odometry {
+namespace {
+
+/// Below this distance (m) a step counts as this long in the motion covariance,
+/// so a robot standing still still reports some uncertainty.
+constexpr double kMinCovarianceDistance = 0.1;
+
+std::string formatOf(const ExternalOdometryConfig& config) {
+  if (config.format != "auto") return config.format;
+  const std::string& f = config.file;
+  return f.size() >= 4 && f.compare(f.size() - 4, 4, ".bag") == 0 ? "bag" : "tum";
+}
+
+Eigen::Isometry3d poseOfVector(const Eigen::Matrix<double, 7, 1>& v) {
+  const Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);
+  if (!v.allFinite() || std::abs(q.norm() - 1.0) > 1e-2) {
+    throw core::Error("external odometry: T_body_sensor needs a unit quaternion (qx qy qz qw)");
+  }
+  return core::makePose(v.head<3>(), q);
+}
+
+/// Rigid poses: KITTI files print rotations to 7 digits.
+core::Trajectory projected(core::Trajectory trajectory) {
+  for (std::size_t i = 0; i < trajectory.size(); ++i) {
+    Eigen::Isometry3d& T = trajectory.pose(i);
+    T.linear() = core::projectToSO3(T.linear());
+  }
+  return trajectory;
+}
+
+}  // namespace
+
+core::Trajectory loadExternalTrajectory(const ExternalOdometryConfig& config) {
+  const std::string format = formatOf(config);
+  if (format == "bag") {
+    if (config.topic.empty()) throw core::Error("external odometry: a bag needs a topic");
+    return io::readBagTrajectory(config.file, config.topic);
+  }
+  if (format != "tum" && format != "kitti") {
+    throw core::Error("external odometry: unknown format '" + format +
+                      "' (expected tum, kitti, bag or auto)");
+  }
+  std::optional<std::string> times;
+  if (!config.times.empty()) times = config.times;
+  return io::readPoses(config.file, io::parsePoseFormat(format), times);
+}
+
+ExternalOdometry::ExternalOdometry(core::Trajectory T_world_body,
+                                   const ExternalOdometryConfig& config)
+    : T_world_body_(projected(std::move(T_world_body))),
+      T_body_sensor_(poseOfVector(config.T_body_sensor)),
+      config_(config) {
+  if (T_world_body_.empty()) throw core::Error("external odometry: the trajectory is empty");
+  if (!T_world_body_.isSorted()) {
+    throw core::Error("external odometry: the trajectory's stamps decrease");
+  }
+}
+
+ExternalOdometry::ExternalOdometry(const ExternalOdometryConfig& config)
+    : ExternalOdometry(loadExternalTrajectory(config), config) {}
+
+OdometryResult ExternalOdometry::process(double stamp, const core::PointCloud& /*scan*/) {
+  if (!std::isfinite(stamp)) return held(stamp, "stamp is not finite");
+  if (last_stamp_ && stamp < *last_stamp_) return held(stamp, "stamp goes backwards");
+  const std::optional<Eigen::Isometry3d> T_world_body = T_world_body_.at(stamp);
+  if (!T_world_body) return held(stamp, "stamp outside the external trajectory");
+  const Eigen::Isometry3d T_world_sensor = *T_world_body * T_body_sensor_;
+  if (!T_world_odom_) T_world_odom_ = T_world_sensor;
+  const Eigen::Isometry3d T_odom_sensor = T_world_odom_->inverse() * T_world_sensor;
+  OdometryResult result;
+  result.stamp = stamp;
+  result.T_odom_sensor = T_odom_sensor;
+  result.covariance = motionCovariance(T_odom_sensor_.inverse() * T_odom_sensor);
+  result.health.accepted = true;
+  result.health.converged = true;
+  T_odom_sensor_ = T_odom_sensor;
+  last_stamp_ = stamp;
+  return result;
+}
+
+OdometryResult ExternalOdometry::held(double stamp, std::string problem) const {
+  OdometryResult result;
+  result.stamp = stamp;
+  result.T_odom_sensor = T_odom_sensor_;
+  result.covariance = motionCovariance(Eigen::Isometry3d::Identity());
+  result.health.problem = std::move(problem);
+  return result;
+}
+
+core::Matrix6d ExternalOdometry::motionCovariance(const Eigen::Isometry3d& T_step) const {
+  // A random walk in distance: variances grow linearly with the metres moved.
+  const double d = std::max(T_step.translation().norm(), kMinCovarianceDistance);
+  core::Vector6d variances;
+  variances.head<3>().setConstant(config_.translation_sigma * config_.translation_sigma * d);
+  variances.tail<3>().setConstant(config_.rotation_sigma * config_.rotation_sigma * d);
+  return variances.asDiagonal();
+}
+
+}  // namespace dcl::odometry

@@ -1,0 +1,167 @@
+#include <cmath>
+#include <utility>
+#include <vector>
+
+#include <dcl/odometry/lidar_odometry.hpp>
+#include <dcl/odometry/preprocessing.hpp>
+
+namespace dcl::odometry {
+namespace {
+
+/// A note on points dropped as unusable; empty when none were.
+std::string droppedNote(const CleanScan& clean) {
+  if (clean.non_finite == 0 && clean.bad_time == 0) return {};
+  return "dropped " + std::to_string(clean.non_finite + clean.bad_time) +
+         " points with non-finite coordinates or times";
+}
+
+FrameHealth healthOf(const RegistrationResult& registration, std::string problem) {
+  FrameHealth health;
+  health.problem = std::move(problem);
+  health.converged = registration.converged;
+  health.degenerate = registration.degenerate;
+  health.iterations = registration.iterations;
+  health.correspondences = registration.inliers;
+  health.residual = registration.rmse;
+  return health;
+}
+
+/// Appends `note` to a problem description.
+void addProblem(std::string& problem, const std::string& note) {
+  if (note.empty()) return;
+  problem += problem.empty() ? note : "; " + note;
+}
+
+}  // namespace
+
+LidarOdometry::LidarOdometry(const OdometryConfig& config)
+    : config_(config),
+      map_(config.mapVoxelSize(), config.max_points_per_voxel),
+      threshold_(config.threshold, config.max_range) {}
+
+OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan) {
+  if (auto problem = checkStamp(stamp)) return skipped(stamp, std::move(*problem));
+  const CleanScan clean = cleanScan(scan, config_.min_range, config_.max_range);
+  if (clean.cloud.size() < config_.min_points) {
+    return skipped(stamp, "too few usable points (" + std::to_string(clean.cloud.size()) + " of " +
+                              std::to_string(scan.size()) + ")");
+  }
+  // 1. Undo the sweep's motion with the last frame's velocity, to mid-sweep.
+  const double t_mid = config_.deskew ? sweepMidTime(clean.cloud) : 0.0;
+  const core::Vector6d sweep_velocity = config_.deskew ? velocity_ : core::Vector6d::Zero();
+  const std::vector<Eigen::Vector3d> points = deskew(clean.cloud, sweep_velocity, t_mid);
+  // 2. Two resolutions (KISS-ICP): the map's, and a coarser one to register.
+  const double voxel = config_.mapVoxelSize();
+  const std::vector<Eigen::Vector3d> frame = voxelDownsample(points, 0.5 * voxel);
+  const std::vector<Eigen::Vector3d> source = voxelDownsample(frame, 1.5 * voxel);
+  // 3. Constant-velocity prediction of the mid-sweep pose.
+  const Eigen::Isometry3d T_predicted = predictReference(stamp + t_mid);
+  // 4. Register against the local map (the first frame starts the map).
+  RegistrationResult registration;
+  registration.T_target_source = T_predicted;
+  registration.converged = true;
+  if (!map_.empty()) registration = registerScan(source, map_, T_predicted, frameIcpConfig());
+  // 5. Check: too few correspondences means the pose would be a guess.
+  OdometryResult result = skipped(stamp, droppedNote(clean));
+  result.health = healthOf(registration, result.health.problem);
+  if (!map_.empty() && registration.inliers < config_.icp.min_inliers) {
+    addProblem(result.health.problem,
+               "registration failed: " + std::to_string(registration.inliers) + " correspondences");
+    return result;
+  }
+  if (registration.degenerate) {
+    addProblem(result.health.problem,
+               "degenerate registration (the scene constrains too few directions)");
+  }
+  // 6. Update velocity, threshold and map, cull it by distance.
+  if (map_.empty() && t_mid != 0.0) first_sweep_ = FirstSweep{clean.cloud, t_mid};
+  commit(stamp, t_mid, registration.T_target_source, T_predicted, frame);
+  result.health.accepted = true;
+  result.T_odom_sensor = T_odom_sensor_;
+  result.covariance = covarianceOf(registration);
+  result.registered = toCloud(frame);
+  result.registered.transform(core::expSE3(t_mid * velocity_));  // mid-sweep to stamp
+  return result;
+}
+
+Eigen::Isometry3d LidarOdometry::predictReference(double time) const {
+  if (!last_reference_time_) return T_odom_reference_;
+  return T_odom_reference_ * core::expSE3((time - *last_reference_time_) * velocity_);
+}
+
+std::optional<std::string> LidarOdometry::checkStamp(double stamp) const {
+  if (!std::isfinite(stamp)) return "non-finite time stamp";
+  if (last_stamp_ && stamp <= *last_stamp_) {
+    return "time stamp " + std::to_string(stamp) + " not after the previous " +
+           std::to_string(*last_stamp_);
+  }
+  return std::nullopt;
+}
+
+OdometryResult LidarOdometry::skipped(double stamp, std::string problem) const {
+  OdometryResult result;
+  result.stamp = stamp;
+  result.health.problem = std::move(problem);
+  // Report the constant-velocity prediction when the stamp moves forward, else hold.
+  const bool forward = last_stamp_ && std::isfinite(stamp) && stamp > *last_stamp_;
+  result.T_odom_sensor = forward ? predictReference(stamp) : T_odom_sensor_;
+  result.covariance = core::Matrix6d::Identity() * config_.max_sigma * config_.max_sigma;
+  return result;
+}
+
+IcpConfig LidarOdometry::frameIcpConfig() const {
+  IcpConfig icp = config_.icp;
+  const double sigma = threshold_.sigma();
+  icp.max_correspondence_distance = 3.0 * sigma;
+  icp.kernel_scale = sigma / 3.0;
+  return icp;
+}
+
+core::Matrix6d LidarOdometry::covarianceOf(const RegistrationResult& registration) const {
+  // Information scaled by the residual variance, bounded so that directions the
+  // scene leaves open get max_sigma rather than infinity, plus a floor because
+  // ICP's residuals are correlated and its raw covariance far too optimistic.
+  const double noise = std::max(registration.rmse, 0.01);
+  const double max_information = 1.0 / (config_.max_sigma * config_.max_sigma);
+  const core::Matrix6d information =
+      registration.information / (noise * noise) + max_information * core::Matrix6d::Identity();
+  core::Matrix6d covariance = information.inverse();
+  const double t2 = config_.min_translation_sigma * config_.min_translation_sigma;
+  const double r2 = config_.min_rotation_sigma * config_.min_rotation_sigma;
+  covariance.diagonal().head<3>().array() += t2;
+  covariance.diagonal().tail<3>().array() += r2;
+  return covariance;
+}
+
+void LidarOdometry::commit(double stamp, double t_mid, const Eigen::Isometry3d& T_odom_reference,
+                           const Eigen::Isometry3d& T_predicted,
+                           std::span<const Eigen::Vector3d> frame) {
+  const double reference_time = stamp + t_mid;
+  const Eigen::Isometry3d T_last_current = T_odom_reference_.inverse() * T_odom_reference;
+  if (last_reference_time_) {
+    velocity_ = core::logSE3(T_last_current) / (reference_time - *last_reference_time_);
+    threshold_.update(T_predicted.inverse() * T_odom_reference,
+                      T_last_current.translation().norm());
+  }
+  T_odom_reference_ = T_odom_reference;
+  if (first_sweep_ && last_reference_time_) redoFirstSweep();
+  last_reference_time_ = reference_time;
+  T_odom_sensor_ = T_odom_reference_ * core::expSE3(-t_mid * velocity_);
+  last_stamp_ = stamp;
+  map_.addPoints(frame, T_odom_reference_);
+  map_.removeFarFrom(T_odom_reference_.translation(), config_.max_range);
+}
+
+void LidarOdometry::redoFirstSweep() {
+  // The first sweep was taken without a velocity: it went into the map
+  // undeskewed, and its middle became the odometry frame. With the first
+  // velocity known, deskew it properly and move the frame to its stamp.
+  const Eigen::Isometry3d T_stamp_mid = core::expSE3(first_sweep_->t_mid * velocity_);
+  const auto points = deskew(first_sweep_->cloud, velocity_, first_sweep_->t_mid);
+  map_.clear();
+  map_.addPoints(voxelDownsample(points, 0.5 * config_.mapVoxelSize()), T_stamp_mid);
+  T_odom_reference_ = T_stamp_mid * T_odom_reference_;
+  first_sweep_.reset();
+}
+
+}  // namespace dcl::odometry
