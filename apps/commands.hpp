@@ -37,4 +37,7 @@ void addOdometryCommand(CLI::App& app, const AppConfig& config);
 /// `bench odometry`: the LiDAR odometry's time per frame over a whole sequence.
 void addBenchOdometryCommand(CLI::App& bench, const AppConfig& config);
 
+/// `bench place`: inter-robot place recognition on a dataset (precision-recall).
+void addBenchPlaceCommand(CLI::App& bench);
+
 }  // namespace dcl::apps

@@ -1,3 +1,4 @@
+#include <algorithm>
 #include <cmath>
 #include <utility>
 #include <vector>
@@ -46,14 +47,11 @@ OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan
     return skipped(stamp, "too few usable points (" + std::to_string(clean.cloud.size()) + " of " +
                               std::to_string(scan.size()) + ")");
   }
-  // 1. Undo the sweep's motion with the last frame's velocity, to mid-sweep.
+  // 1. Undo the sweep's motion with the last frame's velocity, to mid-sweep;
+  // 2. two resolutions (KISS-ICP): the map's, and a coarser one to register.
   const double t_mid = config_.deskew ? sweepMidTime(clean.cloud) : 0.0;
-  const core::Vector6d sweep_velocity = config_.deskew ? velocity_ : core::Vector6d::Zero();
-  const std::vector<Eigen::Vector3d> points = deskew(clean.cloud, sweep_velocity, t_mid);
-  // 2. Two resolutions (KISS-ICP): the map's, and a coarser one to register.
-  const double voxel = config_.mapVoxelSize();
-  const std::vector<Eigen::Vector3d> frame = voxelDownsample(points, 0.5 * voxel);
-  const std::vector<Eigen::Vector3d> source = voxelDownsample(frame, 1.5 * voxel);
+  std::vector<Eigen::Vector3d> frame = thinnedFrame(clean.cloud, t_mid);
+  const std::vector<Eigen::Vector3d> source = voxelDownsample(frame, 1.5 * config_.mapVoxelSize());
   // 3. Constant-velocity prediction of the mid-sweep pose.
   const Eigen::Isometry3d T_predicted = predictReference(stamp + t_mid);
   // 4. Register against the local map (the first frame starts the map).
@@ -73,9 +71,13 @@ OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan
     addProblem(result.health.problem,
                "degenerate registration (the scene constrains too few directions)");
   }
-  // 6. Update velocity, threshold and map, cull it by distance.
+  // 6. Update velocity and threshold, then the map.
+  const bool second_sweep = first_sweep_.has_value();
   if (map_.empty() && t_mid != 0.0) first_sweep_ = FirstSweep{clean.cloud, t_mid};
-  commit(stamp, t_mid, registration.T_target_source, T_predicted, frame);
+  commit(stamp, t_mid, registration.T_target_source, T_predicted);
+  // The second sweep, like the first, was deskewed before any velocity was known.
+  if (second_sweep) frame = thinnedFrame(clean.cloud, t_mid);
+  growMap(frame);
   result.health.accepted = true;
   result.T_odom_sensor = T_odom_sensor_;
   result.covariance = covarianceOf(registration);
@@ -111,7 +113,14 @@ OdometryResult LidarOdometry::skipped(double stamp, std::string problem) const {
 
 IcpConfig LidarOdometry::frameIcpConfig() const {
   IcpConfig icp = config_.icp;
-  const double sigma = threshold_.sigma();
+  // A frame enters the map thinned to one point per half voxel, so even at the
+  // true pose a source point's nearest map point lies up to about half a voxel
+  // away. A gate below that rejects most correct pairs, and then the first
+  // unpredicted turn after a stretch of steady motion (which shrinks sigma to
+  // its floor) leaves too few pairs to pull the pose back: hence 3 sigma is
+  // kept at least at the map's sampling spacing.
+  const double sampling_sigma = 0.5 * config_.mapVoxelSize() / 3.0;
+  const double sigma = std::max(threshold_.sigma(), sampling_sigma);
   icp.max_correspondence_distance = 3.0 * sigma;
   icp.kernel_scale = sigma / 3.0;
   return icp;
@@ -133,9 +142,14 @@ core::Matrix6d LidarOdometry::covarianceOf(const RegistrationResult& registratio
   return covariance;
 }
 
+std::vector<Eigen::Vector3d> LidarOdometry::thinnedFrame(const core::PointCloud& cloud,
+                                                         double t_mid) const {
+  const core::Vector6d velocity = config_.deskew ? velocity_ : core::Vector6d::Zero();
+  return voxelDownsample(deskew(cloud, velocity, t_mid), 0.5 * config_.mapVoxelSize());
+}
+
 void LidarOdometry::commit(double stamp, double t_mid, const Eigen::Isometry3d& T_odom_reference,
-                           const Eigen::Isometry3d& T_predicted,
-                           std::span<const Eigen::Vector3d> frame) {
+                           const Eigen::Isometry3d& T_predicted) {
   const double reference_time = stamp + t_mid;
   const Eigen::Isometry3d T_last_current = T_odom_reference_.inverse() * T_odom_reference;
   if (last_reference_time_) {
@@ -148,6 +162,9 @@ void LidarOdometry::commit(double stamp, double t_mid, const Eigen::Isometry3d& 
   last_reference_time_ = reference_time;
   T_odom_sensor_ = T_odom_reference_ * core::expSE3(-t_mid * velocity_);
   last_stamp_ = stamp;
+}
+
+void LidarOdometry::growMap(std::span<const Eigen::Vector3d> frame) {
   map_.addPoints(frame, T_odom_reference_);
   map_.removeFarFrom(T_odom_reference_.translation(), config_.max_range);
 }
@@ -157,9 +174,8 @@ void LidarOdometry::redoFirstSweep() {
   // undeskewed, and its middle became the odometry frame. With the first
   // velocity known, deskew it properly and move the frame to its stamp.
   const Eigen::Isometry3d T_stamp_mid = core::expSE3(first_sweep_->t_mid * velocity_);
-  const auto points = deskew(first_sweep_->cloud, velocity_, first_sweep_->t_mid);
   map_.clear();
-  map_.addPoints(voxelDownsample(points, 0.5 * config_.mapVoxelSize()), T_stamp_mid);
+  map_.addPoints(thinnedFrame(first_sweep_->cloud, first_sweep_->t_mid), T_stamp_mid);
   T_odom_reference_ = T_stamp_mid * T_odom_reference_;
   first_sweep_.reset();
 }

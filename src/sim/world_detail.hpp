@@ -53,9 +53,14 @@ struct RouteSample {
 
 /// The nearest point of any route to a query point.
 struct RouteNearest {
-  double distance = 0.0;  ///< m, horizontal
-  double z_road = 0.0;    ///< road height at the nearest point
+  double distance = 0.0;                             ///< m, horizontal
+  double z_road = 0.0;                               ///< road height at the nearest point
+  Eigen::Vector2d point = Eigen::Vector2d::Zero();   ///< the nearest point, m
+  Eigen::Vector2d along = Eigen::Vector2d::UnitX();  ///< unit direction of its segment
 };
+
+/// Least horizontal distance between two convex polygons (0 when they overlap).
+double polygonDistance(std::span<const Eigen::Vector2d> a, std::span<const Eigen::Vector2d> b);
 
 /// A place along one route: position, road height, unit tangent and left normal.
 struct RouteFrame {
@@ -176,28 +181,66 @@ struct LotBox {
   double z1 = 1.0;      ///< m, top above the lot's base height
 };
 
+/// A footprint on the ground: four corners counter-clockwise (a box seen from above).
+using Footprint = std::array<Eigen::Vector2d, 4>;
+
+/// The footprints of what stands on the ground, in a grid, so that new
+/// structures can keep apart from earlier ones. Tree trunks are plants: they
+/// keep others only kPlantGap away, whatever gap a structure asks for.
+class Occupancy {
+ public:
+  static constexpr double kPlantGap = 1.0;  ///< m, least distance of anything from a trunk
+
+  void add(const Footprint& footprint, bool plant);
+  /// True when `footprint` keeps `gap` from every solid footprint (kPlantGap from plants).
+  [[nodiscard]] bool free(const Footprint& footprint, double gap) const;
+
+ private:
+  struct Entry {
+    Footprint footprint;
+    bool plant;
+  };
+  using Key = std::int64_t;
+  template <class F>
+  void forCells(const Footprint& footprint, double margin, F&& f) const;
+
+  std::vector<Entry> entries_;
+  std::unordered_map<Key, std::vector<std::uint32_t>> grid_;  ///< entries by cell
+};
+
 /// Adds props after checking they keep clear of every route: each adder
-/// returns false (and adds nothing) when the prop would stand too close.
+/// returns false (and adds nothing) when the prop would stand too close. With
+/// a positive `spacing` (the campus) props also keep apart from the ones
+/// added before them; with 0 (the city) they are not checked against each other.
 class PropAdder {
  public:
-  PropAdder(World& world, const RouteIndex& index, const Terrain& terrain, double clearance)
-      : world_(world), index_(index), terrain_(terrain), clearance_(clearance) {}
+  PropAdder(World& world, const RouteIndex& index, const Terrain& terrain, double clearance,
+            double spacing = 0.0)
+      : world_(world), index_(index), terrain_(terrain), clearance_(clearance), spacing_(spacing) {}
 
-  /// Boxes of one structure (all or none), on the lowest ground under them.
+  /// Boxes of one structure (all or none), on the lowest ground under them,
+  /// keeping `gap` from earlier props when props are checked against each other.
   bool addStructure(const LotFrame& frame, std::span<const LotBox> boxes, Surface surface,
-                    double clearance);
+                    double clearance, double gap = 0.5);
   /// A tree: trunk cylinder and ellipsoid crown.
   bool addTree(const Eigen::Vector2d& xy, Rng& rng);
   /// A lamp post with an arm reaching `arm` (world xy offset), or a sign pole.
   bool addPole(const Eigen::Vector2d& xy, const Eigen::Vector2d& arm, bool lamp);
   /// A parked car heading along `along` on the road at `xy`.
   bool addCar(const Eigen::Vector2d& xy, const Eigen::Vector2d& along, Rng& rng);
+  /// A bike rack: a row of `stands` inverted-U stands (two thin posts and a
+  /// bar each, 0.8 m apart along a) starting at (a, b) of `frame`.
+  bool addBikeRack(const LotFrame& frame, double a, double b, int stands);
 
   [[nodiscard]] double clearance() const { return clearance_; }
+  /// True when props are checked against each other (see the constructor).
+  [[nodiscard]] bool spaced() const { return spacing_ > 0.0; }
+  /// True when the square of half-side `radius` around `xy` keeps `gap` from earlier props.
+  [[nodiscard]] bool freeAround(const Eigen::Vector2d& xy, double radius, double gap) const;
 
  private:
-  [[nodiscard]] std::array<Eigen::Vector2d, 4> corners(const LotFrame& frame,
-                                                       const LotBox& box) const;
+  [[nodiscard]] Footprint corners(const LotFrame& frame, const LotBox& box) const;
+  [[nodiscard]] bool fits(const Footprint& footprint, double gap) const;
   void addLotBox(const LotFrame& frame, const LotBox& box, double base, Surface surface);
   [[nodiscard]] bool clearDisc(const Eigen::Vector2d& xy, double radius) const;
 
@@ -205,6 +248,8 @@ class PropAdder {
   const RouteIndex& index_;
   const Terrain& terrain_;
   double clearance_;
+  double spacing_;
+  Occupancy occupied_;
 };
 
 /// The size of a building on a lot, in the lot frame.
@@ -216,11 +261,23 @@ struct BuildingSpec {
   double floor_height = 3.0;  ///< m a storey (balcony levels)
   bool relief = true;         ///< pillars, balconies and a cornice on the street facades
   double clearance = 8.0;     ///< m, least distance of the footprint from every route
+  double gap = 0.5;           ///< m from earlier props (when the adder checks that)
 };
 
 /// One building: a footprint of several boxes (rectangle, L, notched or
 /// courtyard), with facade relief on the parts facing the street. False when
 /// it would stand too near a route (nothing is added then).
 bool addBuilding(PropAdder& adder, const LotFrame& frame, const BuildingSpec& spec, Rng& rng);
+
+/// The building of `style` for a lot: random depth, storeys, relief; front and frontage given.
+BuildingSpec randomBuilding(const WorldStyle& style, double front, double frontage, Rng& rng);
+
+/// Fills the land the lots along the routes leave free (block interiors, the
+/// land beyond the outer streets) within the style's infill reach: buildings
+/// facing the nearest street on a jittered grid, with hedges, low walls,
+/// bike racks and trees around them, lawns with trees and car parks where
+/// none fits. Nothing when the style's infill spacing is 0.
+void addInfill(PropAdder& adder, const RouteIndex& index, const WorldStyle& style,
+               std::uint64_t seed);
 
 }  // namespace dcl::sim::detail

@@ -80,8 +80,9 @@ class LotFiller {
     const bool front = rng.chance(style_.front_share);
     Rng content(rng.next());
     if (!mid.fresh) return lot.length;
-    if (open) addOpenLot(frame, frontage, content);
-    if (!open) addBuildings(frame, frontage, content);
+    const bool bend = adder_.spaced() && onBend(lot, frontage);
+    if (open || bend) addOpenLot(frame, frontage, content, !bend);
+    if (!open && !bend) addBuildings(frame, frontage, content);
     if (front) addFront(frame, frontage, content);
     return lot.length;
   }
@@ -123,36 +124,44 @@ class LotFiller {
     }
   }
 
-  BuildingSpec randomBuilding(double front, double frontage, Rng& rng) const {
-    BuildingSpec spec;
-    spec.front = front;
-    spec.frontage = frontage;
-    spec.depth = rng.uniform(style_.depth_min, style_.depth_max);
-    spec.floor_height = style_.floor_height;
-    const int floors = rng.integer(style_.floors_min, style_.floors_max);
-    spec.height = floors * style_.floor_height + rng.uniform(0.3, 1.5);
-    spec.relief = rng.chance(style_.relief_share);
-    spec.clearance = style_.road_half_width + 0.5;  // off every lane's road, balconies too
-    return spec;
+  /// True when the road turns by more than 25 degrees along the lot's frontage
+  /// (a corner): no building there, where a straight one would stand askew.
+  [[nodiscard]] bool onBend(const Lot& lot, double frontage) const {
+    const auto first = index_.frameAt(lot.route, lot.s(0.0));
+    const auto last = index_.frameAt(lot.route, lot.s(frontage));
+    return first.along.dot(last.along) < std::cos(25.0 * M_PI / 180.0);
   }
 
   void addBuildings(const LotFrame& frame, double frontage, Rng& rng) {
     const double front = rng.uniform(style_.setback_min, style_.setback_max);
-    const BuildingSpec spec = randomBuilding(front, frontage, rng);
-    detail::addBuilding(adder_, frame, spec, rng);
+    const BuildingSpec spec = detail::randomBuilding(style_, front, frontage, rng);
+    addFitting(frame, spec, rng);
     if (!rng.chance(style_.back_row_share)) return;
     const double back = front + spec.depth + rng.uniform(4.0, 12.0);
-    BuildingSpec behind = randomBuilding(back, frontage * rng.uniform(0.6, 1.0), rng);
+    BuildingSpec behind =
+        detail::randomBuilding(style_, back, frontage * rng.uniform(0.6, 1.0), rng);
     const double tallest = style_.floors_max * style_.floor_height + 1.5;
     behind.height = std::min(behind.height + rng.integer(1, 4) * style_.floor_height, tallest);
-    detail::addBuilding(adder_, frame, behind, rng);
+    addFitting(frame, behind, rng);
   }
 
-  /// A square or lawn with trees, or a car park.
-  void addOpenLot(const LotFrame& frame, double frontage, Rng& rng) {
+  /// The building or, when props are spaced (the campus) and it does not fit,
+  /// a narrower and shallower one.
+  void addFitting(const LotFrame& frame, BuildingSpec spec, Rng& rng) {
+    if (detail::addBuilding(adder_, frame, spec, rng) || !adder_.spaced()) return;
+    for (const double shrink : {0.7, 0.45}) {
+      spec.frontage *= shrink;
+      spec.depth = std::max(style_.depth_min, spec.depth * shrink);
+      if (detail::addBuilding(adder_, frame, spec, rng)) return;
+    }
+  }
+
+  /// A square or lawn with trees, or (where `parking`) a car park.
+  void addOpenLot(const LotFrame& frame, double frontage, Rng& rng, bool parking = true) {
     const double b0 = style_.road_half_width + style_.pavement_width + 2.0;
     const double b1 = style_.setback_max + style_.depth_max;
-    if (rng.chance(style_.parking_share)) return addCarPark(frame, frontage, b0 + 2.0, rng);
+    if (rng.chance(style_.parking_share) && parking)
+      return addCarPark(frame, frontage, b0 + 2.0, rng);
     const double area = frontage * (b1 - b0);
     const int trees = static_cast<int>(style_.lawn_tree_density * area / 100.0 + rng.uniform());
     for (int i = 0; i < trees; ++i) {
@@ -199,26 +208,31 @@ WorldStyle campusStyle() {
   WorldStyle s;
   s.road_half_width = 4.5;
   s.pavement_width = 2.5;
-  s.setback_min = 12.0;
-  s.setback_max = 20.0;
-  s.frontage_min = 20.0;
-  s.frontage_max = 45.0;
-  s.depth_min = 10.0;
-  s.depth_max = 22.0;
-  s.gap_min = 8.0;
-  s.gap_max = 20.0;
+  s.setback_min = 9.5;  // 5-8.5 m from the road's edge
+  s.setback_max = 13.0;
+  s.frontage_min = 14.0;
+  s.frontage_max = 36.0;
+  s.depth_min = 8.0;
+  s.depth_max = 16.0;
+  s.gap_min = 5.0;
+  s.gap_max = 14.0;
   s.floors_min = 1;
   s.floors_max = 4;
-  s.open_share = 0.35;
-  s.back_row_share = 0.25;
+  s.open_share = 0.2;
+  s.back_row_share = 0.3;
   s.relief_share = 0.4;
-  s.front_share = 0.2;
-  s.tree_spacing = 7.0;
-  s.tree_share = 0.85;
-  s.lawn_tree_density = 0.6;
-  s.parking_share = 0.4;
-  s.pole_spacing = 25.0;
+  s.front_share = 0.35;
+  s.tree_spacing = 8.0;
+  s.tree_share = 0.8;
+  s.lawn_tree_density = 0.5;
+  s.parking_share = 0.35;
+  s.pole_spacing = 20.0;
   s.terrain_amplitude = 1.0;
+  s.min_building_gap = 4.0;
+  s.infill_spacing = 32.0;
+  s.infill_reach = 85.0;
+  s.infill_setback = 9.0;
+  s.bike_rack_share = 0.4;
   return s;
 }
 
@@ -237,9 +251,10 @@ World generateWorld(const WorldRequest& request, const WorldStyle& style) {
   World world;
   detail::addGround(world, terrain, index, style);
   detail::addRoads(world, index, style);
-  detail::PropAdder adder(world, index, terrain, kRouteClearance);
+  detail::PropAdder adder(world, index, terrain, kRouteClearance, style.min_building_gap);
   LotFiller filler(style, index, adder, detail::mix(request.seed, 0x10f5));
   for (std::size_t r = 0; r < index.routeCount(); ++r) filler.fillRoute(r);
+  detail::addInfill(adder, index, style, detail::mix(request.seed, 0x1f11));
   return world;
 }
 

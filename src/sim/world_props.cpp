@@ -12,27 +12,79 @@ double LotFrame::yaw() const {
   return std::atan2(along.y(), along.x());
 }
 
-std::array<Eigen::Vector2d, 4> PropAdder::corners(const LotFrame& frame, const LotBox& box) const {
+namespace {
+
+constexpr double kOccupancyCell = 8.0;  // m, grid cell of the occupancy
+
+Footprint square(const Eigen::Vector2d& xy, double half) {
+  return {xy + Eigen::Vector2d(-half, -half), xy + Eigen::Vector2d(half, -half),
+          xy + Eigen::Vector2d(half, half), xy + Eigen::Vector2d(-half, half)};
+}
+
+}  // namespace
+
+template <class F>
+void Occupancy::forCells(const Footprint& footprint, double margin, F&& f) const {
+  Eigen::Vector2d lo = footprint[0], hi = footprint[0];
+  for (const auto& p : footprint) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  const auto cell = [](double v) { return static_cast<int>(std::floor(v / kOccupancyCell)); };
+  for (int x = cell(lo.x() - margin); x <= cell(hi.x() + margin); ++x)
+    for (int y = cell(lo.y() - margin); y <= cell(hi.y() + margin); ++y)
+      f((static_cast<Key>(x) << 32) ^ static_cast<Key>(static_cast<std::uint32_t>(y)));
+}
+
+void Occupancy::add(const Footprint& footprint, bool plant) {
+  const auto id = static_cast<std::uint32_t>(entries_.size());
+  entries_.push_back({footprint, plant});
+  forCells(footprint, 0.0, [&](Key key) { grid_[key].push_back(id); });
+}
+
+bool Occupancy::free(const Footprint& footprint, double gap) const {
+  bool ok = true;
+  forCells(footprint, std::max(gap, kPlantGap), [&](Key key) {
+    const auto it = grid_.find(key);
+    if (!ok || it == grid_.end()) return;
+    for (const std::uint32_t id : it->second) {
+      const Entry& e = entries_[id];
+      if (polygonDistance(footprint, e.footprint) < (e.plant ? kPlantGap : gap)) ok = false;
+    }
+  });
+  return ok;
+}
+
+Footprint PropAdder::corners(const LotFrame& frame, const LotBox& box) const {
   const double ha = box.size_a / 2, hb = box.size_b / 2;
   return {frame.toWorld(box.a - ha, box.b - hb), frame.toWorld(box.a + ha, box.b - hb),
           frame.toWorld(box.a + ha, box.b + hb), frame.toWorld(box.a - ha, box.b + hb)};
 }
 
 void PropAdder::addLotBox(const LotFrame& frame, const LotBox& box, double base, Surface surface) {
+  occupied_.add(corners(frame, box), false);
   const Eigen::Vector2d c = frame.toWorld(box.a, box.b);
   const Eigen::Isometry3d T_world_box = Eigen::Translation3d(c.x(), c.y(), base + box.z0) *
                                         Eigen::AngleAxisd(frame.yaw(), Eigen::Vector3d::UnitZ());
   world_.addBox(T_world_box, {box.size_a, box.size_b, box.z1 - box.z0}, surface);
 }
 
+bool PropAdder::fits(const Footprint& footprint, double gap) const {
+  return !spaced() || occupied_.free(footprint, gap);
+}
+
+bool PropAdder::freeAround(const Eigen::Vector2d& xy, double radius, double gap) const {
+  return fits(square(xy, radius), gap);
+}
+
 bool PropAdder::addStructure(const LotFrame& frame, std::span<const LotBox> boxes, Surface surface,
-                             double clearance) {
+                             double clearance, double gap) {
   if (boxes.empty()) return false;
   const double needed = std::max(clearance, clearance_);
   double base = std::numeric_limits<double>::infinity();
   for (const LotBox& box : boxes) {
     const auto footprint = corners(frame, box);
-    if (!index_.clear(footprint, needed)) return false;
+    if (!index_.clear(footprint, needed) || !fits(footprint, gap)) return false;
     if (&box == &boxes.front())
       for (const auto& p : footprint) base = std::min(base, terrain_.height(p));
   }
@@ -51,6 +103,8 @@ bool PropAdder::addTree(const Eigen::Vector2d& xy, Rng& rng) {
     radii.x() = near->distance - clearance_;  // a smaller crown beside the road
     if (radii.x() < 1.0) return false;
   }
+  if (!fits(square(xy, 0.7 * radii.x()), 0.3)) return false;  // the crown may overhang a little
+  occupied_.add(square(xy, trunk_r), true);
   const double base = terrain_.height(xy) - 0.2;
   world_.addCylinder({xy.x(), xy.y(), base}, trunk_r, trunk_h + 0.5 * radii.z() + 0.2, 7,
                      Surface::trunk);
@@ -61,6 +115,8 @@ bool PropAdder::addTree(const Eigen::Vector2d& xy, Rng& rng) {
 
 bool PropAdder::addPole(const Eigen::Vector2d& xy, const Eigen::Vector2d& arm, bool lamp) {
   if (!clearDisc(xy, 0.15) || (lamp && !clearDisc(xy + arm, 0.15))) return false;
+  if (!fits(square(xy, 0.15), 0.3)) return false;
+  occupied_.add(square(xy, 0.15), false);
   const double base = terrain_.height(xy) - 0.2;
   const double height = lamp ? 8.0 : 2.8;
   world_.addCylinder({xy.x(), xy.y(), base}, lamp ? 0.12 : 0.05, height, 6, Surface::pole);
@@ -84,10 +140,23 @@ bool PropAdder::addCar(const Eigen::Vector2d& xy, const Eigen::Vector2d& along, 
   const LotBox rear_axle{-length * 0.32, 0, 0.6, width - 0.2, 0.0, 0.3};
   const std::array<LotBox, 4> boxes = {body, cabin, front_axle, rear_axle};
   const auto footprint = corners(frame, body);
-  if (!index_.clear(footprint, clearance_)) return false;
+  if (!index_.clear(footprint, clearance_) || !fits(footprint, 0.5)) return false;
   const double base = terrain_.height(xy);
   for (const LotBox& box : boxes) addLotBox(frame, box, base, Surface::vehicle);
   return true;
+}
+
+bool PropAdder::addBikeRack(const LotFrame& frame, double a, double b, int stands) {
+  // Structures stand 0.3 m deep in the ground: 0.85 m stands.
+  constexpr double kPitch = 0.8, kWidth = 0.7, kHeight = 1.15, kPost = 0.05;
+  std::vector<LotBox> boxes;
+  for (int i = 0; i < stands; ++i) {
+    const double at = a + i * kPitch;
+    boxes.push_back({at, b - kWidth / 2, kPost, kPost, 0.0, kHeight});
+    boxes.push_back({at, b + kWidth / 2, kPost, kPost, 0.0, kHeight});
+    boxes.push_back({at, b, kPost, kWidth, kHeight - kPost, kHeight});
+  }
+  return addStructure(frame, boxes, Surface::pole, clearance_, 0.5);
 }
 
 namespace {
@@ -165,7 +234,21 @@ bool addBuilding(PropAdder& adder, const LotFrame& frame, const BuildingSpec& sp
     const auto extra = facadeRelief(a0, a1, spec.front, part.z1, spec.floor_height, rng);
     boxes.insert(boxes.end(), extra.begin(), extra.end());
   }
-  return adder.addStructure(frame, boxes, Surface::building, spec.clearance);
+  return adder.addStructure(frame, boxes, Surface::building, spec.clearance, spec.gap);
+}
+
+BuildingSpec randomBuilding(const WorldStyle& style, double front, double frontage, Rng& rng) {
+  BuildingSpec spec;
+  spec.front = front;
+  spec.frontage = frontage;
+  spec.depth = rng.uniform(style.depth_min, style.depth_max);
+  spec.floor_height = style.floor_height;
+  const int floors = rng.integer(style.floors_min, style.floors_max);
+  spec.height = floors * style.floor_height + rng.uniform(0.3, 1.5);
+  spec.relief = rng.chance(style.relief_share);
+  spec.clearance = style.road_half_width + 0.5;  // off every lane's road, balconies too
+  spec.gap = style.min_building_gap;
+  return spec;
 }
 
 }  // namespace dcl::sim::detail

@@ -97,6 +97,14 @@ std::vector<RouteSample> resample(const core::Trajectory& route, double mount_he
 
 }  // namespace
 
+double polygonDistance(std::span<const Eigen::Vector2d> a, std::span<const Eigen::Vector2d> b) {
+  if (insideConvex(a, b[0]) || insideConvex(b, a[0])) return 0.0;
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < a.size(); ++i)
+    best = std::min(best, segmentPolygonDistance(a[i], a[(i + 1) % a.size()], b));
+  return best;
+}
+
 std::uint64_t mix(std::uint64_t h, std::uint64_t value) {
   std::uint64_t z = h ^ (value + 0x9e3779b97f4a7c15ULL + (h << 6) + (h >> 2));
   z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
@@ -244,7 +252,11 @@ std::optional<RouteNearest> RouteIndex::nearest(const Eigen::Vector2d& p, double
             [&](const RouteSample& a, const RouteSample& b) {
               const SegmentPoint sp = pointToSegment(p, a.xy, b.xy);
               if (best && sp.distance >= best->distance) return;
-              best = RouteNearest{sp.distance, a.z_road + sp.t * (b.z_road - a.z_road)};
+              const Eigen::Vector2d d = b.xy - a.xy;
+              const Eigen::Vector2d along =
+                  d.norm() > 1e-9 ? d.normalized() : Eigen::Vector2d::UnitX();
+              best = RouteNearest{sp.distance, a.z_road + sp.t * (b.z_road - a.z_road),
+                                  a.xy + sp.t * d, along};
             },
             paved_only);
       }

@@ -3,6 +3,7 @@
 The metrics are compared with tests/eval/reference_metrics.py, an
 independent numpy implementation of evo's definitions.
 """
+import csv
 import json
 import os
 import subprocess
@@ -483,3 +484,54 @@ class Simulate(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+class Place(unittest.TestCase):
+    """dcl-slam bench place: inter-robot place recognition on the demo swarm."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.dataset = os.path.join(cls.tmp.name, "demo")
+        run("simulate", "--preset", "demo", "--out", cls.dataset)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def bench(self, descriptor):
+        out = os.path.join(self.tmp.name, descriptor)
+        _, stdout, _ = run("bench", "place", "--dataset", self.dataset, "--descriptor", descriptor,
+                           "--every", "2", "--out", out, "--json")
+        return out, json.loads(stdout)
+
+    def test_iris_finds_inter_robot_loops_and_writes_the_curve(self):
+        out, m = self.bench("iris")
+        curve = m["curve"]
+        self.assertGreater(m["keyframes"], 100)
+        self.assertGreater(curve["positives"], 0)
+        self.assertGreaterEqual(curve["recall_at_100_precision"], 0.0)
+        self.assertLessEqual(curve["recall_at_100_precision"], 1.0)
+        self.assertGreater(m["true_loops"], 0)
+        with open(os.path.join(out, "pr.csv")) as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual(len(rows), len({r["threshold"] for r in rows}))
+        for row in rows:
+            self.assertTrue(0.0 <= float(row["precision"]) <= 1.0)
+            self.assertTrue(0.0 <= float(row["recall"]) <= 1.0)
+        with open(os.path.join(out, "pr.svg")) as f:
+            svg = f.read()
+        self.assertIn("<polyline", svg)
+        self.assertTrue(svg.rstrip().endswith("</svg>"))
+        self.assertGreater(m["timing_ms"]["describe_mean"], 0.0)
+
+    def test_scan_context_runs_too(self):
+        _, m = self.bench("scancontext")
+        self.assertEqual(m["descriptor"], "scancontext")
+        self.assertLessEqual(m["curve"]["recall_at_100_precision"], 1.0)
+
+    def test_unknown_descriptor_is_named(self):
+        code, _, err = run("bench", "place", "--dataset", self.dataset, "--descriptor", "m2dp",
+                           "--out", os.path.join(self.tmp.name, "x"), check=False)
+        self.assertEqual(code, 1)
+        self.assertIn("'m2dp'", err)

@@ -9,6 +9,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <vector>
 
 #include <dcl/core/point_cloud.hpp>
 #include <dcl/core/se3.hpp>
@@ -93,10 +94,16 @@ class LidarOdometry final : public Odometry {
   void redoFirstSweep();
   /// The constant-velocity prediction of the sensor pose at `time` (s, absolute).
   [[nodiscard]] Eigen::Isometry3d predictReference(double time) const;
+  /// The cleaned `cloud` deskewed to `t_mid` (s after the stamp) with the current
+  /// velocity (none when deskewing is off), one point per half map voxel.
+  [[nodiscard]] std::vector<Eigen::Vector3d> thinnedFrame(const core::PointCloud& cloud,
+                                                          double t_mid) const;
   /// Commits an accepted mid-sweep pose (the sweep's middle is `t_mid` s after
-  /// `stamp`): velocity, adaptive threshold, map, and the pose at the stamp.
+  /// `stamp`): velocity, adaptive threshold, and the pose at the stamp.
   void commit(double stamp, double t_mid, const Eigen::Isometry3d& T_odom_reference,
-              const Eigen::Isometry3d& T_predicted, std::span<const Eigen::Vector3d> frame);
+              const Eigen::Isometry3d& T_predicted);
+  /// Adds a committed frame (mid-sweep sensor frame) to the map and culls it by distance.
+  void growMap(std::span<const Eigen::Vector3d> frame);
 
   OdometryConfig config_;
   VoxelHashMap map_;

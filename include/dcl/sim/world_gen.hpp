@@ -54,13 +54,28 @@ struct WorldStyle {
   double terrain_amplitude = 1.5;  ///< m, low-frequency relief away from the roads
   double ground_roughness = 0.03;  ///< m, per-vertex ground noise off the road
   double terrain_blend = 40.0;     ///< m, from the pavement's edge to free terrain
+  // Dense layouts (the campus): props spaced apart, the land between the streets filled.
+  /// m; > 0: every building keeps this far from the props placed before it (other props
+  /// 0.3-0.5 m), shrinks to fit, and lots on bends stay open; 0: props are not checked
+  /// against each other (the city's lots never meet).
+  double min_building_gap = 0.0;
+  /// m; > 0 (with min_building_gap > 0): a jittered grid of this pitch fills the land
+  /// the lots leave (block interiors, beyond the outer streets) with buildings facing
+  /// the nearest street, lawns and car parks; 0: no infill.
+  double infill_spacing = 0.0;
+  double infill_reach = 75.0;    ///< m, no infill site farther than this from every route (nor
+                                 ///< than extent - frontage_max)
+  double infill_setback = 9.0;   ///< m, least distance of an infill building from every route
+  double bike_rack_share = 0.0;  ///< share of infill buildings with a bike rack in front
   // Perceptual aliasing.
   double repeat_period = 0.0;  ///< m; > 0: every lot identical, one every period along each route
 };
 
 /// The city: 15 m streets lined with parked cars, 2-7 storey blocks 11-16 m from the centreline.
 WorldStyle cityStyle();
-/// The campus: narrow roads, lower and sparser buildings far back, many trees, open squares.
+/// The campus: narrow roads, 1-4 storey buildings of varied size 5-8 m back from the road
+/// and filling the blocks and the land beyond the outer streets, many trees, hedges,
+/// low walls, lamp posts, bike racks, car parks and lawns.
 WorldStyle campusStyle();
 /// Perceptual aliasing: one 40 m block (same buildings, trees, cars) repeated on flat ground.
 WorldStyle aliasingStyle();
@@ -80,7 +95,8 @@ World generateWorld(const WorldRequest& request, const WorldStyle& style);
 /// kerbs, on a gently sloped noisy ground that meets every route at mount height.
 World generateCityWorld(const WorldRequest& request);
 
-/// A campus: wider spacing, lower buildings, more trees and open squares.
+/// A campus: lower, more spread buildings than the city, inside the blocks and beyond
+/// the streets too, with trees, hedges, lamp posts, bike racks and car parks.
 World generateCampusWorld(const WorldRequest& request);
 
 /// Perceptual aliasing: identical blocks repeated along the routes, so that

@@ -1,0 +1,508 @@
+#include <kiss_fftr.h>
+
+#include <dcl/place/lidar_iris.hpp>
+
+#if defined(__SSE2__)
+#include <immintrin.h>
+#endif
+
+#include <algorithm>
+#include <bit>
+#include <cmath>
+#include <string>
+
+#include <dcl/core/error.hpp>
+
+namespace dcl::place {
+
+namespace {
+
+constexpr float kPiF = 3.14159265358979323846F;
+
+void check(bool ok, const std::string& what) {
+  if (!ok) throw core::Error("LiDAR-Iris: " + what);
+}
+
+std::size_t idx(int i) {
+  return static_cast<std::size_t>(i);
+}
+
+/// atan on [0, 1], absolute error below 1e-7 rad: one reduction by tan(pi/8)
+/// and the classic odd polynomial (Cephes' atanf). The image needs an angle
+/// for each of ~120 k points a scan; libm's atan2f alone would use the whole
+/// description budget.
+inline float atanUnit(float a) {
+  const bool big = a > 0.41421356F;
+  const float t = (big ? a - 1.0F : a) / (big ? a + 1.0F : 1.0F);
+  const float z = t * t;
+  const float p = (((8.05374449538e-2F * z - 1.38776856032e-1F) * z + 1.99777106478e-1F) * z -
+                   3.33329491539e-1F) *
+                      z * t +
+                  t;
+  return big ? p + 0.25F * kPiF : p;
+}
+
+/// The column of the direction (x, y): the nearest multiple of 360/columns
+/// degrees, counter-clockwise from +x (the original's floor(yaw + 0.5)).
+/// Selects rather than branches, so that a loop over points vectorises.
+inline int columnOf(float x, float y, int columns) {
+  const float ax = __builtin_fabsf(x);
+  const float ay = __builtin_fabsf(y);
+  const float hi = ax > ay ? ax : ay;
+  const float lo = ax > ay ? ay : ax;
+  float r = atanUnit(lo / (hi > 1e-30F ? hi : 1e-30F));
+  r = ay > ax ? 0.5F * kPiF - r : r;
+  r = x < 0.0F ? kPiF - r : r;
+  r = y < 0.0F ? 2.0F * kPiF - r : r;  // [0, 2 pi)
+  const int c = static_cast<int>(r * (static_cast<float>(columns) / (2.0F * kPiF)) + 0.5F);
+  return c >= columns ? c - columns : c;
+}
+
+/// Everything the per-point loop needs, in float.
+struct ImageGrid {
+  float row_scale = 1.0F;  // rows per metre
+  float lowest = -5.0F;
+  float inv_slab = 1.0F;
+  int rows = 80;
+  int columns = 360;
+};
+
+/// Horizontal ranges of a chunk of points. SSE's sqrt, four at a time: the
+/// compiler will not vectorise std::sqrt, which may have to set errno.
+void ranges(const Eigen::Vector3f* points, int count, float* range) {
+  for (int i = 0; i < count; ++i)
+    range[i] = points[i].x() * points[i].x() + points[i].y() * points[i].y();
+#if defined(__SSE2__)
+  int i = 0;
+  for (; i + 4 <= count; i += 4) _mm_storeu_ps(range + i, _mm_sqrt_ps(_mm_loadu_ps(range + i)));
+  for (; i < count; ++i) range[i] = std::sqrt(range[i]);
+#else
+  for (int i = 0; i < count; ++i) range[i] = std::sqrt(range[i]);
+#endif
+}
+
+/// Bins a chunk of points: the cell index of each, and its height bit (0 for
+/// a point that is not finite, which then changes nothing). Free of branches
+/// so that it vectorises, with AVX2 where the CPU has it.
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+__attribute__((target_clones("avx2", "default")))
+#endif
+void binChunk(const ImageGrid& g, const Eigen::Vector3f* points, const float* range, int count,
+              int* cell, std::uint32_t* bit) {
+  for (int i = 0; i < count; ++i) {
+    const float x = points[i].x(), y = points[i].y(), z = points[i].z();
+    const bool finite = (x - x == 0.0F) & (y - y == 0.0F) & (z - z == 0.0F);
+    const float row_f =
+        std::min(finite ? range[i] * g.row_scale : 0.0F, static_cast<float>(g.rows - 1));
+    const int row = static_cast<int>(row_f);
+    // The slab index ceil((z - lowest) / slab), clamped to the 8 bits of a
+    // cell: for KITTI's HDL-64, bit clamp(ceil(z + 5), 0, 7). ceil by hand on
+    // the clamped value: SSE2 has no rounding instruction, and a call would
+    // stop the vectoriser.
+    const float v = std::clamp(finite ? (z - g.lowest) * g.inv_slab : 0.0F, -1.0F, 8.0F);
+    const int t = static_cast<int>(v);
+    const int slab = std::clamp(t + (static_cast<float>(t) < v ? 1 : 0), 0, 7);
+    const int column = columnOf(finite ? x : 1.0F, finite ? y : 0.0F, g.columns);
+    cell[i] = row * g.columns + column;
+    bit[i] = finite ? 1U << slab : 0U;
+  }
+}
+
+/// A kissfft real-to-complex or complex-to-real plan, freed with the object.
+struct RealPlan {
+  kiss_fftr_cfg cfg = nullptr;
+  int n = 0;
+  RealPlan(int size, bool inverse)
+      : cfg(kiss_fftr_alloc(size, inverse ? 1 : 0, nullptr, nullptr)), n(size) {}
+  ~RealPlan() { kiss_fftr_free(cfg); }
+  RealPlan(const RealPlan&) = delete;
+  RealPlan& operator=(const RealPlan&) = delete;
+};
+
+/// One inverse real FFT plan per thread and length: plans keep scratch
+/// buffers, and making one costs more than the transform.
+RealPlan& inversePlan(int n) {
+  thread_local std::unique_ptr<RealPlan> plan;
+  if (!plan || plan->n != n) plan = std::make_unique<RealPlan>(n, true);
+  return *plan;
+}
+
+bool sameFilters(const LogGaborConfig& a, const LogGaborConfig& b) {
+  return a.scales == b.scales && a.min_wavelength == b.min_wavelength &&
+         a.multiplier == b.multiplier && a.sigma_on_f == b.sigma_on_f;
+}
+
+/// One filter bank per thread (see LogGaborBank: not shareable).
+LogGaborBank& bankFor(int columns, const LogGaborConfig& config) {
+  thread_local std::unique_ptr<LogGaborBank> bank;
+  if (!bank || bank->columns() != columns || !sameFilters(bank->config(), config))
+    bank = std::make_unique<LogGaborBank>(columns, config);
+  return *bank;
+}
+
+void setBit(std::uint64_t* row, int column) {
+  row[column / 64] |= std::uint64_t{1} << (column % 64);
+}
+
+/// Scratch for describing one image.
+struct FeatureScratch {
+  std::vector<float> row;
+  std::vector<std::complex<float>> spectrum;
+  std::vector<std::complex<float>> response;
+};
+
+/// Feature and mask bits of one row at one scale, from its complex response,
+/// built a word at a time without branches.
+void packResponse(const std::vector<std::complex<float>>& response, float threshold,
+                  std::uint64_t* re, std::uint64_t* im, std::uint64_t* mask) {
+  const float threshold2 = threshold * threshold;
+  const int n = static_cast<int>(response.size());
+  for (int w = 0; w * 64 < n; ++w) {
+    std::uint64_t r = 0, i = 0, m = 0;
+    const int end = std::min(64, n - w * 64);
+    for (int b = 0; b < end; ++b) {
+      const std::complex<float> v = response[idx(w * 64 + b)];
+      r |= static_cast<std::uint64_t>(v.real() > 0.0F) << b;
+      i |= static_cast<std::uint64_t>(v.imag() > 0.0F) << b;
+      m |= static_cast<std::uint64_t>(std::norm(v) < threshold2) << b;
+    }
+    re[w] = r;
+    im[w] = i;
+    mask[w] = m;
+  }
+}
+
+/// Word offset of (plane, row) in a packed array.
+std::size_t rowOffset(const IrisDescriptor& d, int plane, int row) {
+  return (idx(plane) * idx(d.image.rows) + idx(row)) * idx(d.words);
+}
+
+/// Masks every column of an empty row (no response at all, as the original's
+/// magnitude test gives).
+void maskWholeRow(IrisDescriptor& d, int row) {
+  for (int s = 0; s < d.scales; ++s)
+    for (int c = 0; c < d.image.columns; ++c) setBit(&d.mask[rowOffset(d, s, row)], c);
+}
+
+/// The LoG-Gabor features of one image row (Eq. 2), and its spectrum added
+/// to its band for the phase correlation (Eq. 3-4).
+void describeRow(IrisDescriptor& d, const IrisConfig& config, int row, LogGaborBank& bank,
+                 FeatureScratch& scratch) {
+  const std::span<const std::uint8_t> codes = d.image.row(row);
+  if (std::all_of(codes.begin(), codes.end(), [](std::uint8_t c) { return c == 0; }))
+    return maskWholeRow(d, row);
+  std::transform(codes.begin(), codes.end(), scratch.row.begin(),
+                 [](std::uint8_t c) { return static_cast<float>(c); });
+  bank.spectrum(scratch.row, scratch.spectrum);
+  const std::size_t bins = scratch.spectrum.size();
+  const int band = row * config.shift_bands / d.image.rows;
+  for (std::size_t k = 0; k < bins; ++k)
+    d.band_spectra[idx(band) * bins + k] += scratch.spectrum[k];
+  const auto threshold = static_cast<float>(config.log_gabor.mask_threshold);
+  for (int s = 0; s < d.scales; ++s) {
+    bank.response(scratch.spectrum, s, scratch.response);
+    packResponse(scratch.response, threshold, &d.features[rowOffset(d, s, row)],
+                 &d.features[rowOffset(d, s + d.scales, row)], &d.mask[rowOffset(d, s, row)]);
+  }
+}
+
+void checkComparable(const IrisDescriptor& a, const IrisDescriptor& b) {
+  check(a.image.rows == b.image.rows && a.image.columns == b.image.columns &&
+            a.scales == b.scales && a.words == b.words &&
+            a.band_spectra.size() == b.band_spectra.size() && a.image.columns > 0,
+        "cannot compare descriptors of different dimensions");
+}
+
+}  // namespace
+
+void validate(const IrisConfig& config) {
+  check(config.rows >= 1 && config.rows <= 1024, "rows must be in 1..1024");
+  check(config.columns >= 4 && config.columns <= 4096 && config.columns % 2 == 0,
+        "columns must be even and in 4..4096");
+  check(config.max_range > 0.0, "max_range must be positive");
+  const HeightEncoding h = config.heightEncoding();
+  check(h.slab > 0.0 && std::isfinite(h.lowest), "height slab must be positive");
+  check(config.neighbour_shifts >= 0 && config.neighbour_shifts <= config.columns / 4,
+        "neighbour_shifts must be in 0..columns/4");
+  check(config.shift_bands >= 1 && config.shift_bands <= config.rows,
+        "shift_bands must be in 1..rows");
+  LogGaborBank probe(config.columns, config.log_gabor);  // validates the filters
+}
+
+std::span<const std::uint64_t> IrisDescriptor::featureRow(int plane, int row) const {
+  return {features.data() + rowOffset(*this, plane, row), idx(words)};
+}
+
+std::span<const std::uint64_t> IrisDescriptor::maskRow(int scale, int row) const {
+  return {mask.data() + rowOffset(*this, scale, row), idx(words)};
+}
+
+IrisImage makeIrisImage(const core::PointCloud& scan, const IrisConfig& config) {
+  const HeightEncoding h = config.heightEncoding();
+  const ImageGrid grid{static_cast<float>(config.rows / config.max_range),
+                       static_cast<float>(h.lowest), static_cast<float>(1.0 / h.slab), config.rows,
+                       config.columns};
+  IrisImage image{config.rows, config.columns,
+                  std::vector<std::uint8_t>(idx(config.rows * config.columns), 0)};
+  constexpr int kChunk = 512;
+  int cell[kChunk];
+  std::uint32_t bit[kChunk];
+  float range[kChunk];
+  const int total = static_cast<int>(scan.points.size());
+  for (int start = 0; start < total; start += kChunk) {
+    const int count = std::min(kChunk, total - start);
+    ranges(scan.points.data() + start, count, range);
+    binChunk(grid, scan.points.data() + start, range, count, cell, bit);
+    for (int i = 0; i < count; ++i) image.cells[idx(cell[i])] |= static_cast<std::uint8_t>(bit[i]);
+  }
+  return image;
+}
+
+std::vector<float> irisRowKey(const IrisImage& image) {
+  std::vector<float> key(idx(image.rows), 0.0F);
+  for (int r = 0; r < image.rows; ++r) {
+    double sum = 0.0;
+    for (std::uint8_t c : image.row(r)) sum += static_cast<double>(c) * c;
+    key[idx(r)] = static_cast<float>(std::sqrt(sum));
+  }
+  return key;
+}
+
+IrisDescriptor describeIrisImage(IrisImage image, const IrisConfig& config) {
+  check(image.rows == config.rows && image.columns == config.columns &&
+            image.cells.size() == idx(image.rows) * idx(image.columns),
+        "image dimensions do not match the configuration");
+  IrisDescriptor d;
+  d.image = std::move(image);
+  d.row_key = irisRowKey(d.image);
+  d.scales = config.log_gabor.scales;
+  d.words = (config.columns + 63) / 64;
+  d.features.assign(idx(2 * d.scales * config.rows * d.words), 0);
+  d.mask.assign(idx(d.scales * config.rows * d.words), 0);
+  const int bins = config.columns / 2 + 1;
+  d.band_spectra.assign(idx(config.shift_bands * bins), {0.0F, 0.0F});
+  LogGaborBank& bank = bankFor(config.columns, config.log_gabor);
+  FeatureScratch scratch{std::vector<float>(idx(config.columns)),
+                         std::vector<std::complex<float>>(idx(bins)),
+                         std::vector<std::complex<float>>(idx(config.columns))};
+  for (int r = 0; r < config.rows; ++r) describeRow(d, config, r, bank, scratch);
+  return d;
+}
+
+IrisDescriptor describeIris(const core::PointCloud& scan, const IrisConfig& config) {
+  return describeIrisImage(makeIrisImage(scan, config), config);
+}
+
+std::vector<float> irisShiftCorrelation(const IrisDescriptor& query,
+                                        const IrisDescriptor& candidate) {
+  checkComparable(query, candidate);
+  const int n = query.image.columns;
+  const std::size_t bins = idx(n / 2 + 1);
+  const std::size_t bands = query.band_spectra.size() / bins;
+  // Eq. 3-4: a rotation by s columns multiplies each bin k of the candidate's
+  // spectrum by exp(-2 pi i k s / n); whitening the cross-power spectrum summed
+  // over the bands leaves that phase alone, whose inverse DFT peaks at s. Bin 0
+  // (the mean) carries no shift.
+  std::vector<std::complex<float>> cross(bins, {0.0F, 0.0F});
+  for (std::size_t b = 0; b < bands; ++b)
+    for (std::size_t k = 1; k < bins; ++k)
+      cross[k] +=
+          candidate.band_spectra[b * bins + k] * std::conj(query.band_spectra[b * bins + k]);
+  for (std::complex<float>& c : cross) {
+    const float m = std::abs(c);
+    c = m > 1e-12F ? c / m : std::complex<float>{0.0F, 0.0F};
+  }
+  std::vector<float> correlation(idx(n));
+  kiss_fftri(inversePlan(n).cfg, reinterpret_cast<const kiss_fft_cpx*>(cross.data()),
+             correlation.data());
+  return correlation;
+}
+
+namespace {
+
+/// The query's packed rows, each written twice in a row (2n bits, plus a spare
+/// word), so that any circular shift of a row is a contiguous bit window.
+struct DoubledRows {
+  int stride = 0;  // words a doubled row
+  std::vector<std::uint64_t> bits;
+};
+
+/// ORs the `words` words of `src` into `dst` starting at bit `offset`.
+void orAt(std::uint64_t* dst, const std::uint64_t* src, int words, int offset) {
+  const int w0 = offset / 64;
+  const int b = offset % 64;
+  for (int w = 0; w < words; ++w) {
+    dst[w0 + w] |= src[w] << b;
+    if (b != 0) dst[w0 + w + 1] |= src[w] >> (64 - b);
+  }
+}
+
+DoubledRows doubleRows(const std::vector<std::uint64_t>& packed, int words, int columns) {
+  const std::size_t count = packed.size() / idx(words);
+  DoubledRows d{2 * words + 1, {}};
+  d.bits.assign(count * idx(d.stride), 0);
+  for (std::size_t r = 0; r < count; ++r) {
+    std::uint64_t* dst = d.bits.data() + r * idx(d.stride);
+    orAt(dst, packed.data() + r * idx(words), words, 0);
+    orAt(dst, packed.data() + r * idx(words), words, columns);
+  }
+  return d;
+}
+
+/// Word `w` of the window of `columns` bits that starts at bit `offset`.
+inline std::uint64_t window(const std::uint64_t* doubled, int offset, int w) {
+  const int w0 = offset / 64 + w;
+  const int b = offset % 64;
+  return b == 0 ? doubled[w0] : (doubled[w0] >> b) | (doubled[w0 + 1] << (64 - b));
+}
+
+/// What Eq. 6 counts: differing bits and bits masked in neither.
+struct BitCounts {
+  std::uint64_t differing = 0;
+  std::uint64_t valid = 0;
+};
+
+/// Counts for one (scale, row) at one window offset of the query. Compiled
+/// for the popcnt instruction where the CPU has it (x86-64's baseline lacks it).
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+__attribute__((target_clones("popcnt", "default")))
+#endif
+BitCounts
+countRow(const std::uint64_t* q_re, const std::uint64_t* q_im, const std::uint64_t* q_mask,
+         const std::uint64_t* c_re, const std::uint64_t* c_im, const std::uint64_t* c_mask,
+         int words, int offset, std::uint64_t last_word_bits) {
+  BitCounts n;
+  for (int w = 0; w < words; ++w) {
+    const std::uint64_t in_row = w + 1 == words ? last_word_bits : ~std::uint64_t{0};
+    const std::uint64_t valid = ~(window(q_mask, offset, w) | c_mask[w]) & in_row;
+    const std::uint64_t re = (window(q_re, offset, w) ^ c_re[w]) & valid;
+    const std::uint64_t im = (window(q_im, offset, w) ^ c_im[w]) & valid;
+    n.differing += static_cast<std::uint64_t>(std::popcount(re) + std::popcount(im));
+    n.valid += 2 * static_cast<std::uint64_t>(std::popcount(valid));
+  }
+  return n;
+}
+
+/// The query prepared once per match: features and mask doubled.
+struct PreparedQuery {
+  DoubledRows features;
+  DoubledRows mask;
+};
+
+PreparedQuery prepare(const IrisDescriptor& q) {
+  return {doubleRows(q.features, q.words, q.image.columns),
+          doubleRows(q.mask, q.words, q.image.columns)};
+}
+
+/// Eq. 6 at shift `shift` (candidate column j against query column j - shift).
+double hamming(const PreparedQuery& pq, const IrisDescriptor& q, const IrisDescriptor& c,
+               int shift) {
+  const int n = q.image.columns;
+  const int offset = (n - shift % n) % n;
+  const int tail = n % 64;
+  const std::uint64_t last = tail == 0 ? ~std::uint64_t{0} : (std::uint64_t{1} << tail) - 1;
+  const std::size_t stride = idx(pq.features.stride);
+  BitCounts total;
+  for (int s = 0; s < q.scales; ++s) {
+    for (int r = 0; r < q.image.rows; ++r) {
+      const std::size_t re = idx(s * q.image.rows + r);
+      const std::size_t im = idx((s + q.scales) * q.image.rows + r);
+      const BitCounts b = countRow(
+          pq.features.bits.data() + re * stride, pq.features.bits.data() + im * stride,
+          pq.mask.bits.data() + re * stride, c.featureRow(s, r).data(),
+          c.featureRow(s + q.scales, r).data(), c.maskRow(s, r).data(), q.words, offset, last);
+      total.differing += b.differing;
+      total.valid += b.valid;
+    }
+  }
+  return total.valid == 0 ? 1.0
+                          : static_cast<double>(total.differing) / static_cast<double>(total.valid);
+}
+
+/// The best peak of the correlation among shifts whose signed value lies in
+/// [lo, hi] columns.
+int peakIn(const std::vector<float>& correlation, int lo, int hi) {
+  const int n = static_cast<int>(correlation.size());
+  int best = (lo + n) % n;
+  for (int s = lo; s <= hi; ++s) {
+    const int k = (s + n) % n;
+    if (correlation[idx(k)] > correlation[idx(best)]) best = k;
+  }
+  return best;
+}
+
+/// Hamming distance around one peak: the peak and `radius` shifts either side.
+Match searchAround(const PreparedQuery& pq, const IrisDescriptor& q, const IrisDescriptor& c,
+                   int peak, int radius) {
+  const int n = q.image.columns;
+  Match best;
+  best.distance = 2.0;
+  for (int d = -radius; d <= radius; ++d) {
+    const int shift = ((peak + d) % n + n) % n;
+    const double distance = hamming(pq, q, c, shift);
+    if (distance < best.distance) {
+      best.distance = distance;
+      best.shift = shift;
+    }
+  }
+  return best;
+}
+
+/// Fills the yaw of T_query_candidate from the shift: the candidate shows the
+/// query's column j at column j + shift, i.e. the scene turned by +shift
+/// columns, so the candidate's frame is turned by -shift columns.
+Match withYaw(Match m, int columns) {
+  const int signed_shift = m.shift > columns / 2 ? m.shift - columns : m.shift;
+  m.yaw_rad = -2.0 * 3.14159265358979323846 * signed_shift / columns;
+  m.reversed = std::abs(signed_shift) > columns / 4;
+  return m;
+}
+
+}  // namespace
+
+double irisHammingDistance(const IrisDescriptor& query, const IrisDescriptor& candidate,
+                           int shift) {
+  checkComparable(query, candidate);
+  return hamming(prepare(query), query, candidate, shift);
+}
+
+Match matchIris(const IrisDescriptor& query, const IrisDescriptor& candidate,
+                const IrisConfig& config) {
+  const std::vector<float> correlation = irisShiftCorrelation(query, candidate);
+  const int n = query.image.columns;
+  const PreparedQuery pq = prepare(query);
+  // Same driving direction: |yaw| <= 90 deg; opposite: the rest of the circle,
+  // where a revisit the other way round puts the scene half a turn away. Each
+  // direction's peak is scored, and the neighbours of the better one searched
+  // (the peak may be a column off): 7 Hamming distances instead of 10.
+  const int forward = peakIn(correlation, -n / 4, n / 4);
+  int peak = forward;
+  if (config.match_reverse) {
+    const int reverse = peakIn(correlation, n / 4 + 1, 3 * n / 4 - 1);
+    if (hamming(pq, query, candidate, reverse) < hamming(pq, query, candidate, forward))
+      peak = reverse;
+  }
+  const Match best = searchAround(pq, query, candidate, peak, config.neighbour_shifts);
+  return withYaw(best, n);
+}
+
+LidarIris::LidarIris(const IrisConfig& config) : config_(config) {
+  validate(config_);
+}
+
+std::size_t LidarIris::keySize() const {
+  return idx(config_.rows);
+}
+
+std::shared_ptr<const PlaceDescriptor> LidarIris::describe(const core::PointCloud& scan) const {
+  return std::make_shared<const IrisDescriptor>(describeIris(scan, config_));
+}
+
+Match LidarIris::match(const PlaceDescriptor& query, const PlaceDescriptor& candidate) const {
+  const auto* q = dynamic_cast<const IrisDescriptor*>(&query);
+  const auto* c = dynamic_cast<const IrisDescriptor*>(&candidate);
+  check(q != nullptr && c != nullptr, "match: both descriptors must be LiDAR-Iris descriptors");
+  return matchIris(*q, *c, config_);
+}
+
+}  // namespace dcl::place

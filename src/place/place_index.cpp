@@ -1,0 +1,77 @@
+#include "dcl/place/place_index.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+#include <dcl/core/error.hpp>
+
+#include "key_tree.hpp"
+
+namespace dcl::place {
+
+PlaceIndex::PlaceIndex(std::shared_ptr<const Descriptor> descriptor, core::RobotId robot,
+                       const PlaceIndexConfig& config)
+    : descriptor_(std::move(descriptor)),
+      robot_(robot),
+      config_(config),
+      tree_(std::make_unique<detail::KeyTree>()) {
+  if (!descriptor_) throw core::Error("PlaceIndex: no descriptor");
+}
+
+PlaceIndex::~PlaceIndex() = default;
+PlaceIndex::PlaceIndex(PlaceIndex&&) noexcept = default;
+PlaceIndex& PlaceIndex::operator=(PlaceIndex&&) noexcept = default;
+
+void PlaceIndex::add(core::KeyframeId id, std::shared_ptr<const PlaceDescriptor> description) {
+  if (!description) throw core::Error("PlaceIndex::add: no description");
+  if (description->kind() != descriptor_->kind()) {
+    throw core::Error("PlaceIndex::add: a " + std::string(toString(description->kind())) +
+                      " description in a " + std::string(toString(descriptor_->kind())) + " index");
+  }
+  const std::span<const float> key = description->key();
+  if (key.size() != descriptor_->keySize()) {
+    throw core::Error("PlaceIndex::add: key of length " + std::to_string(key.size()) +
+                      ", expected " + std::to_string(descriptor_->keySize()));
+  }
+  tree_->add(key);
+  ids_.push_back(id);
+  descriptions_.push_back(std::move(description));
+}
+
+std::size_t PlaceIndex::eligible(QueryScope scope) const {
+  if (scope == QueryScope::kOtherRobot) return size();
+  return size() > config_.exclude_recent ? size() - config_.exclude_recent : 0;
+}
+
+std::vector<PlaceCandidate> PlaceIndex::rank(const PlaceDescriptor& query, QueryScope scope) const {
+  // Stage 1: the k nearest rotation-invariant keys (cheap, L2 in the k-d tree).
+  const auto nearest = tree_->nearest(query.key(), config_.candidates, eligible(scope));
+  // Stage 2: the full match on those only (paper: the Hamming distance of Eq. 6
+  // is too heavy to compute against the whole history).
+  std::vector<PlaceCandidate> out;
+  out.reserve(nearest.size());
+  for (const auto& [slot, squared] : nearest) {
+    PlaceCandidate c;
+    c.keyframe = {robot_, ids_[slot]};
+    c.slot = slot;
+    c.match = descriptor_->match(query, *descriptions_[slot]);
+    c.key_distance = std::sqrt(squared);
+    out.push_back(c);
+  }
+  std::stable_sort(out.begin(), out.end(), [](const PlaceCandidate& a, const PlaceCandidate& b) {
+    return a.match.distance < b.match.distance;
+  });
+  return out;
+}
+
+std::optional<PlaceCandidate> PlaceIndex::query(const PlaceDescriptor& query,
+                                                QueryScope scope) const {
+  const auto ranked = rank(query, scope);
+  if (ranked.empty() || !(ranked.front().match.distance < config_.max_distance)) {
+    return std::nullopt;
+  }
+  return ranked.front();
+}
+
+}  // namespace dcl::place
