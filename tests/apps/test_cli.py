@@ -276,8 +276,8 @@ class Demo(unittest.TestCase):
         self.assertIn("ATE se3", out)
 
 
-class Odometry(unittest.TestCase):
-    """dcl-slam odometry: one robot of a simulated dataset, built-in and external front-ends."""
+class DemoDataset(unittest.TestCase):
+    """A simulated demo dataset (ground truth only, scans regenerated), shared by a class."""
 
     @classmethod
     def setUpClass(cls):
@@ -288,6 +288,10 @@ class Odometry(unittest.TestCase):
     @classmethod
     def tearDownClass(cls):
         cls.tmp.cleanup()
+
+
+class Odometry(DemoDataset):
+    """dcl-slam odometry: one robot of a simulated dataset, built-in and external front-ends."""
 
     def run_odometry(self, name, *extra):
         out = os.path.join(self.tmp.name, name)
@@ -482,22 +486,9 @@ class Simulate(unittest.TestCase):
         self.assertAlmostEqual(result["realtime_factor"], result["scans_per_s"] / 10.0)
 
 
-if __name__ == "__main__":
-    unittest.main()
 
-
-class Place(unittest.TestCase):
+class Place(DemoDataset):
     """dcl-slam bench place: inter-robot place recognition on the demo swarm."""
-
-    @classmethod
-    def setUpClass(cls):
-        cls.tmp = tempfile.TemporaryDirectory()
-        cls.dataset = os.path.join(cls.tmp.name, "demo")
-        run("simulate", "--preset", "demo", "--out", cls.dataset)
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.tmp.cleanup()
 
     def bench(self, descriptor):
         out = os.path.join(self.tmp.name, descriptor)
@@ -535,3 +526,7 @@ class Place(unittest.TestCase):
                            "--out", os.path.join(self.tmp.name, "x"), check=False)
         self.assertEqual(code, 1)
         self.assertIn("'m2dp'", err)
+
+
+if __name__ == "__main__":
+    unittest.main()
