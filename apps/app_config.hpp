@@ -10,6 +10,8 @@
 #include <dcl/odometry/external_odometry.hpp>
 #include <dcl/odometry/lidar_odometry.hpp>
 #include <dcl/odometry/local_mapper.hpp>
+#include <dcl/place/descriptor.hpp>
+#include <dcl/place/evaluation.hpp>
 
 namespace dcl::apps {
 
@@ -36,6 +38,18 @@ struct EvalSection {
   }
 };
 
+/// Place recognition: the descriptor, and how `bench place` searches and scores.
+struct PlaceSection {
+  place::DescriptorConfig descriptor;  ///< LiDAR-Iris or Scan Context and their parameters
+  place::EvaluationConfig evaluation;  ///< true-loop distance, index (candidates, threshold)
+
+  template <class Visitor>
+  void visit(Visitor& v) {
+    v.section("descriptor", descriptor, "the place descriptor (bench place: --descriptor wins)");
+    v.section("evaluation", evaluation, "place-recognition evaluation and index");
+  }
+};
+
 /// Everything `dcl-slam` can be configured with.
 struct AppConfig {
   std::string log_level = "info";             ///< trace | debug | info | warn | error | off
@@ -43,6 +57,7 @@ struct AppConfig {
   odometry::OdometryConfig odometry;          ///< the built-in LiDAR odometry
   odometry::ExternalOdometryConfig external;  ///< poses from another front-end
   odometry::LocalMapperConfig mapper;         ///< keyframes, intra-robot loops, local graph
+  PlaceSection place;                         ///< place recognition
 
   template <class Visitor>
   void visit(Visitor& v) {
@@ -51,6 +66,7 @@ struct AppConfig {
     v.section("odometry", odometry, "the built-in LiDAR odometry");
     v.section("external", external, "external odometry (poses from another front-end)");
     v.section("mapper", mapper, "keyframes, intra-robot loop closure, local pose graph");
+    v.section("place", place, "place recognition");
   }
 };
 

@@ -288,17 +288,18 @@ void printSummary(const Json& m) {
       thresholdText(p));
 }
 
-void runBenchPlace(const PlaceOptions& o) {
+void runBenchPlace(const PlaceOptions& o, const PlaceSection& section) {
   if (o.every == 0) throw core::Error("--every must be at least 1");
   const io::DatasetSpec spec = io::readDataset(o.dataset);
-  place::DescriptorConfig config;
+  place::DescriptorConfig config = section.descriptor;
   const auto kind = place::parseDescriptorKind(o.descriptor);
   if (!kind) throw core::Error("unknown descriptor '" + o.descriptor + "' (iris or scancontext)");
   config.kind = std::string(place::toString(*kind));
   config.iris.sensor = spec.sensor;
   std::shared_ptr<const place::Descriptor> descriptor = place::makeDescriptor(config);
   Described d = describeDataset(spec, *descriptor, o);
-  const place::PlaceEvaluation e = place::evaluatePlaces(descriptor, d.keyframes);
+  const place::PlaceEvaluation e =
+      place::evaluatePlaces(descriptor, d.keyframes, section.evaluation);
   const auto sequence = kittiSequence(spec.name);
   const auto published = publishedCurve(o.data.empty() ? defaultDataDir() : o.data, sequence);
   const Json metrics = metricsJson(spec, o, d, e, published, sequence);
@@ -310,7 +311,7 @@ void runBenchPlace(const PlaceOptions& o) {
 
 }  // namespace
 
-void addBenchPlaceCommand(CLI::App& bench) {
+void addBenchPlaceCommand(CLI::App& bench, const AppConfig& app_config) {
   auto* cmd = bench.add_subcommand(
       "place",
       "inter-robot place recognition on a dataset: precision-recall, recall at 100 % "
@@ -327,7 +328,7 @@ void addBenchPlaceCommand(CLI::App& bench) {
   cmd->add_option("--max-keyframes", o->max_keyframes, "keyframes per robot (0: all)")
       ->capture_default_str();
   cmd->add_flag("--json", o->json, "print the result as JSON");
-  cmd->callback([o] { runBenchPlace(*o); });
+  cmd->callback([o, &app_config] { runBenchPlace(*o, app_config.place); });
 }
 
 }  // namespace dcl::apps

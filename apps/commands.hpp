@@ -38,6 +38,6 @@ void addOdometryCommand(CLI::App& app, const AppConfig& config);
 void addBenchOdometryCommand(CLI::App& bench, const AppConfig& config);
 
 /// `bench place`: inter-robot place recognition on a dataset (precision-recall).
-void addBenchPlaceCommand(CLI::App& bench);
+void addBenchPlaceCommand(CLI::App& bench, const AppConfig& config);
 
 }  // namespace dcl::apps

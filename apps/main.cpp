@@ -60,7 +60,7 @@ int run(int argc, char** argv) {
   bench->require_subcommand(1);
   dcl::apps::addBenchSimCommand(*bench);
   dcl::apps::addBenchOdometryCommand(*bench, config);
-  dcl::apps::addBenchPlaceCommand(*bench);
+  dcl::apps::addBenchPlaceCommand(*bench, config);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
