@@ -209,52 +209,42 @@ class Convert(unittest.TestCase):
 class Config(unittest.TestCase):
     """dcl-slam config --dump: complete, commented, and it loads back."""
 
+    def dump_with(self, yaml_text):
+        """Runs `config --dump --config FILE` on `yaml_text`; returns (code, out, err, path)."""
+        with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:
+            f.write(yaml_text)
+        try:
+            return (*run("config", "--dump", "--config", f.name, check=False), f.name)
+        finally:
+            os.unlink(f.name)
+
     def test_dump_loads_back_to_the_same_configuration(self):
         _, dump, _ = run("config", "--dump")
         self.assertIn("max_time_diff", dump)
         self.assertIn("#", dump)
-        with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:
-            f.write(dump.replace("max_time_diff: 0.01", "max_time_diff: 0.25"))
-        try:
-            _, again, _ = run("config", "--dump", "--config", f.name)
-        finally:
-            os.unlink(f.name)
+        changed = dump.replace("max_time_diff: 0.01", "max_time_diff: 0.25")
+        code, again, _, _ = self.dump_with(changed)
+        self.assertEqual(code, 0)
         self.assertIn("max_time_diff: 0.25", again)
-        self.assertEqual(dump.replace("max_time_diff: 0.01", "max_time_diff: 0.25"), again)
+        self.assertEqual(changed, again)
 
     def test_unknown_key_is_named(self):
-        with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:
-            f.write("eval:\n  max_time_dif: 0.2\n")
-        try:
-            code, _, err = run("config", "--dump", "--config", f.name, check=False)
-        finally:
-            os.unlink(f.name)
+        code, _, err, path = self.dump_with("eval:\n  max_time_dif: 0.2\n")
         self.assertNotEqual(code, 0)
         self.assertIn("max_time_dif", err)
-        self.assertIn(f.name, err)
+        self.assertIn(path, err)
 
     def test_wrong_type_is_named(self):
-        with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:
-            f.write("eval:\n  kitti_step: ten\n")
-        try:
-            code, _, err = run("config", "--dump", "--config", f.name, check=False)
-        finally:
-            os.unlink(f.name)
+        code, _, err, _ = self.dump_with("eval:\n  kitti_step: ten\n")
         self.assertNotEqual(code, 0)
         self.assertIn("eval.kitti_step", err)
 
-
     def test_value_outside_its_set_is_named(self):
-        with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:
-            f.write("eval:\n  alignment: affine\n")
-        try:
-            code, _, err = run("config", "--dump", "--config", f.name, check=False)
-        finally:
-            os.unlink(f.name)
+        code, _, err, path = self.dump_with("eval:\n  alignment: affine\n")
         self.assertNotEqual(code, 0)
         self.assertIn("eval.alignment", err)
         self.assertIn("affine", err)
-        self.assertIn(f.name, err)
+        self.assertIn(path, err)
 
 
 class Demo(unittest.TestCase):
