@@ -109,24 +109,29 @@ inline __m128i columnOf4(__m128 x, __m128 y, int columns) {
   return _mm_sub_epi32(c, _mm_and_si128(wrap, _mm_set1_epi32(columns)));
 }
 
+/// x, y and z of four packed points: the 12 floats x0 y0 z0 x1 | y1 z1 x2 y2
+/// | z2 x3 y3 z3 split by shuffles, fewer instructions than four scalar loads
+/// a coordinate.
+inline void splitFour(const float* f, __m128& x, __m128& y, __m128& z) {
+  const __m128 a0 = _mm_loadu_ps(f), a1 = _mm_loadu_ps(f + 4), a2 = _mm_loadu_ps(f + 8);
+  const __m128 x1y1 = _mm_shuffle_ps(a0, a1, _MM_SHUFFLE(0, 0, 3, 3));
+  const __m128 xy01 = _mm_shuffle_ps(a0, x1y1, _MM_SHUFFLE(2, 0, 1, 0));
+  const __m128 xy23 = _mm_shuffle_ps(a1, a2, _MM_SHUFFLE(2, 1, 3, 2));
+  const __m128 z01 = _mm_shuffle_ps(a0, a1, _MM_SHUFFLE(1, 1, 2, 2));
+  const __m128 z23 = _mm_shuffle_ps(a2, a2, _MM_SHUFFLE(3, 3, 0, 0));
+  x = _mm_shuffle_ps(xy01, xy23, _MM_SHUFFLE(2, 0, 2, 0));
+  y = _mm_shuffle_ps(xy01, xy23, _MM_SHUFFLE(3, 1, 3, 1));
+  z = _mm_shuffle_ps(z01, z23, _MM_SHUFFLE(2, 0, 2, 0));
+}
+
 /// Bins four points: the cell index of each, and its height slab, 8 (a bit
 /// that a uint8_t cell does not hold) for a point that is not finite.
 /// Intrinsics rather than a loop for the vectoriser, which GCC refuses (it
 /// sees control flow in the selects); about twice as fast as that loop.
 inline void binFour(const ImageGrid& g, const Eigen::Vector3f* p, int* cell, int* slab) {
   static_assert(sizeof(Eigen::Vector3f) == 3 * sizeof(float), "points are packed xyz");
-  // The 12 floats x0 y0 z0 x1 | y1 z1 x2 y2 | z2 x3 y3 z3, split by shuffles:
-  // fewer instructions than four scalar loads a coordinate.
-  const float* f = p[0].data();
-  const __m128 a0 = _mm_loadu_ps(f), a1 = _mm_loadu_ps(f + 4), a2 = _mm_loadu_ps(f + 8);
-  const __m128 x1y1 = _mm_shuffle_ps(a0, a1, _MM_SHUFFLE(0, 0, 3, 3));    // x1 x1 y1 y1
-  const __m128 xy01 = _mm_shuffle_ps(a0, x1y1, _MM_SHUFFLE(2, 0, 1, 0));  // x0 y0 x1 y1
-  const __m128 xy23 = _mm_shuffle_ps(a1, a2, _MM_SHUFFLE(2, 1, 3, 2));    // x2 y2 x3 y3
-  const __m128 z01 = _mm_shuffle_ps(a0, a1, _MM_SHUFFLE(1, 1, 2, 2));     // z0 z0 z1 z1
-  const __m128 z23 = _mm_shuffle_ps(a2, a2, _MM_SHUFFLE(3, 3, 0, 0));     // z2 z2 z3 z3
-  const __m128 x = _mm_shuffle_ps(xy01, xy23, _MM_SHUFFLE(2, 0, 2, 0));
-  const __m128 y = _mm_shuffle_ps(xy01, xy23, _MM_SHUFFLE(3, 1, 3, 1));
-  const __m128 z = _mm_shuffle_ps(z01, z23, _MM_SHUFFLE(2, 0, 2, 0));
+  __m128 x, y, z;
+  splitFour(p[0].data(), x, y, z);
   const __m128 zero = _mm_setzero_ps();
   const __m128 finite = _mm_and_ps(
       _mm_and_ps(_mm_cmpeq_ps(_mm_sub_ps(x, x), zero), _mm_cmpeq_ps(_mm_sub_ps(y, y), zero)),
@@ -154,6 +159,93 @@ inline void binFour(const ImageGrid& g, const Eigen::Vector3f* p, int* cell, int
   _mm_storeu_si128(reinterpret_cast<__m128i*>(cell), _mm_add_epi32(row_start, column));
 }
 
+#if defined(__x86_64__) && defined(__GNUC__)
+#define DCL_IRIS_AVX2 1
+
+// The same binning on eight lanes, compiled for AVX2 (without FMA, which
+// would round differently from the scalar path) and chosen at run time.
+#define DCL_AVX2 __attribute__((target("avx2")))
+
+DCL_AVX2 inline __m256 select8(__m256 mask, __m256 a, __m256 b) {
+  return _mm256_blendv_ps(b, a, mask);
+}
+
+DCL_AVX2 inline __m256 atanRatio8(__m256 lo, __m256 hi) {
+  const __m256 big = _mm256_cmp_ps(lo, _mm256_mul_ps(_mm256_set1_ps(0.41421356F), hi), _CMP_GT_OQ);
+  const __m256 t = _mm256_div_ps(select8(big, _mm256_sub_ps(lo, hi), lo),
+                                 select8(big, _mm256_add_ps(lo, hi), hi));
+  const __m256 z = _mm256_mul_ps(t, t);
+  __m256 p = _mm256_sub_ps(_mm256_mul_ps(_mm256_set1_ps(8.05374449538e-2F), z),
+                           _mm256_set1_ps(1.38776856032e-1F));
+  p = _mm256_add_ps(_mm256_mul_ps(p, z), _mm256_set1_ps(1.99777106478e-1F));
+  p = _mm256_sub_ps(_mm256_mul_ps(p, z), _mm256_set1_ps(3.33329491539e-1F));
+  p = _mm256_add_ps(_mm256_mul_ps(_mm256_mul_ps(p, z), t), t);
+  return select8(big, _mm256_add_ps(p, _mm256_set1_ps(0.25F * kPiF)), p);
+}
+
+DCL_AVX2 inline __m256i columnOf8(__m256 x, __m256 y, int columns) {
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256 sign = _mm256_set1_ps(-0.0F);
+  const __m256 ax = _mm256_andnot_ps(sign, x);
+  const __m256 ay = _mm256_andnot_ps(sign, y);
+  const __m256 hi = _mm256_max_ps(ax, ay);
+  const __m256 lo = _mm256_min_ps(ax, ay);
+  __m256 r = atanRatio8(lo, _mm256_max_ps(hi, _mm256_set1_ps(1e-30F)));
+  r = select8(_mm256_cmp_ps(ay, ax, _CMP_GT_OQ), _mm256_sub_ps(_mm256_set1_ps(0.5F * kPiF), r), r);
+  r = select8(_mm256_cmp_ps(x, zero, _CMP_LT_OQ), _mm256_sub_ps(_mm256_set1_ps(kPiF), r), r);
+  r = select8(_mm256_cmp_ps(y, zero, _CMP_LT_OQ), _mm256_sub_ps(_mm256_set1_ps(2.0F * kPiF), r), r);
+  const __m256 scale = _mm256_set1_ps(static_cast<float>(columns) / (2.0F * kPiF));
+  const __m256i c =
+      _mm256_cvttps_epi32(_mm256_add_ps(_mm256_mul_ps(r, scale), _mm256_set1_ps(0.5F)));
+  const __m256i wrap = _mm256_cmpgt_epi32(c, _mm256_set1_epi32(columns - 1));
+  return _mm256_sub_epi32(c, _mm256_and_si256(wrap, _mm256_set1_epi32(columns)));
+}
+
+/// binFour on eight points.
+DCL_AVX2 inline void binEight(const ImageGrid& g, const Eigen::Vector3f* p, int* cell, int* slab) {
+  __m128 x0, y0, z0, x1, y1, z1;
+  splitFour(p[0].data(), x0, y0, z0);
+  splitFour(p[4].data(), x1, y1, z1);
+  const __m256 x = _mm256_set_m128(x1, x0);
+  const __m256 y = _mm256_set_m128(y1, y0);
+  const __m256 z = _mm256_set_m128(z1, z0);
+  const __m256 zero = _mm256_setzero_ps();
+  const __m256 finite =
+      _mm256_and_ps(_mm256_and_ps(_mm256_cmp_ps(_mm256_sub_ps(x, x), zero, _CMP_EQ_OQ),
+                                  _mm256_cmp_ps(_mm256_sub_ps(y, y), zero, _CMP_EQ_OQ)),
+                    _mm256_cmp_ps(_mm256_sub_ps(z, z), zero, _CMP_EQ_OQ));
+  const __m256 range = _mm256_sqrt_ps(_mm256_add_ps(_mm256_mul_ps(x, x), _mm256_mul_ps(y, y)));
+  const __m256 row_f =
+      _mm256_min_ps(_mm256_and_ps(finite, _mm256_mul_ps(range, _mm256_set1_ps(g.row_scale))),
+                    _mm256_set1_ps(static_cast<float>(g.rows - 1)));
+  const __m256i row = _mm256_cvttps_epi32(row_f);
+  const __m256 h = _mm256_and_ps(finite, _mm256_mul_ps(_mm256_sub_ps(z, _mm256_set1_ps(g.lowest)),
+                                                       _mm256_set1_ps(g.inv_slab)));
+  const __m256 v = _mm256_min_ps(_mm256_max_ps(h, _mm256_set1_ps(-0.5F)), _mm256_set1_ps(7.0F));
+  const __m256i s = _mm256_cvttps_epi32(_mm256_ceil_ps(v));
+  const __m256i fin = _mm256_castps_si256(finite);
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(slab),
+                      _mm256_blendv_epi8(_mm256_set1_epi32(8), s, fin));
+  const __m256i column =
+      columnOf8(select8(finite, x, _mm256_set1_ps(1.0F)), select8(finite, y, zero), g.columns);
+  const __m256i row_start = _mm256_mullo_epi32(row, _mm256_set1_epi32(g.columns));
+  _mm256_storeu_si256(reinterpret_cast<__m256i*>(cell), _mm256_add_epi32(row_start, column));
+}
+
+DCL_AVX2 int binChunkAvx2(const ImageGrid& g, const Eigen::Vector3f* points, int count, int* cell,
+                          int* slab) {
+  int i = 0;
+  for (; i + 8 <= count; i += 8) binEight(g, points + i, cell + i, slab + i);
+  return i;
+}
+
+bool hasAvx2() {
+  static const bool has = __builtin_cpu_supports("avx2");
+  return has;
+}
+
+#undef DCL_AVX2
+#endif
 #endif
 
 /// Bins one point as binFour does: its cell index and slab (8 if not finite).
@@ -173,6 +265,9 @@ inline void binOne(const ImageGrid& g, const Eigen::Vector3f& p, int* cell, int*
 /// Bins a chunk of points: the cell index of each, and its height slab.
 void binChunk(const ImageGrid& g, const Eigen::Vector3f* points, int count, int* cell, int* slab) {
   int i = 0;
+#if defined(DCL_IRIS_AVX2)
+  if (hasAvx2()) i = binChunkAvx2(g, points, count, cell, slab);
+#endif
 #if defined(__SSE2__)
   for (; i + 4 <= count; i += 4) binFour(g, points + i, cell + i, slab + i);
 #endif

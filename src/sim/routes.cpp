@@ -1,8 +1,10 @@
+#include <Eigen/SparseCholesky>
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <filesystem>
 #include <numeric>
+#include <unordered_map>
 
 #include <dcl/core/error.hpp>
 #include <dcl/core/ids.hpp>
@@ -84,6 +86,68 @@ core::Trajectory limitGrade(const core::Trajectory& T_world_sensor, double max_g
   return out;
 }
 
+core::Trajectory levelRevisits(const core::Trajectory& T_world_sensor, const LevelConfig& config) {
+  const std::size_t n = T_world_sensor.size();
+  if (n < 2) return T_world_sensor;
+  if (!(config.radius > 0.0) || !(config.min_travel > 0.0) || !(config.revisit_weight > 0.0))
+    throw core::Error("levelRevisits: radius, min_travel and revisit_weight must be positive");
+  const std::vector<double> travel = T_world_sensor.distances();
+  const auto xy = [&](std::size_t i) -> Eigen::Vector2d {
+    return T_world_sensor.pose(i).translation().head<2>();
+  };
+  const auto z = [&](std::size_t i) { return T_world_sensor.pose(i).translation().z(); };
+
+  // Horizontal grid of cell `radius` for the nearest pose of another pass.
+  using Cell = std::int64_t;
+  const auto cellOf = [&](const Eigen::Vector2d& p, int dx = 0, int dy = 0) -> Cell {
+    const auto cx = static_cast<std::int64_t>(std::floor(p.x() / config.radius)) + dx;
+    const auto cy = static_cast<std::int64_t>(std::floor(p.y() / config.radius)) + dy;
+    return (cx << 32) ^ (cy & 0xffffffff);
+  };
+  std::unordered_map<Cell, std::vector<std::size_t>> grid;
+  for (std::size_t i = 0; i < n; ++i) grid[cellOf(xy(i))].push_back(i);
+
+  // Rows: z'_0 = z_0 (the gauge), z'_i - z'_(i-1) = z_i - z_(i-1), and
+  // w (z'_i - z'_j) = 0 for j the nearest earlier pass within the radius.
+  std::vector<Eigen::Triplet<double>> a;
+  std::vector<double> b;
+  const auto row = [&](std::size_t i, double ci, std::size_t j, double cj, double rhs) {
+    const auto r = static_cast<int>(b.size());
+    a.emplace_back(r, static_cast<int>(i), ci);
+    if (cj != 0.0) a.emplace_back(r, static_cast<int>(j), cj);
+    b.push_back(rhs);
+  };
+  row(0, 1.0, 0, 0.0, z(0));
+  for (std::size_t i = 1; i < n; ++i) row(i, 1.0, i - 1, -1.0, z(i) - z(i - 1));
+  for (std::size_t i = 0; i < n; ++i) {
+    std::size_t best = n;
+    double best_d = config.radius;
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy) {
+        const auto it = grid.find(cellOf(xy(i), dx, dy));
+        if (it == grid.end()) continue;
+        for (const std::size_t j : it->second) {
+          if (j >= i || travel[i] - travel[j] < config.min_travel) continue;
+          const double d = (xy(i) - xy(j)).norm();
+          if (d < best_d) best_d = d, best = j;
+        }
+      }
+    if (best < n) row(i, config.revisit_weight, best, -config.revisit_weight, 0.0);
+  }
+  Eigen::SparseMatrix<double> A(static_cast<Eigen::Index>(b.size()), static_cast<Eigen::Index>(n));
+  A.setFromTriplets(a.begin(), a.end());
+  const Eigen::SparseMatrix<double> AtA = A.transpose() * A;
+  const Eigen::VectorXd Atb = A.transpose() * Eigen::Map<const Eigen::VectorXd>(
+                                                  b.data(), static_cast<Eigen::Index>(b.size()));
+  const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> solver(AtA);
+  if (solver.info() != Eigen::Success) throw core::Error("levelRevisits: factorisation failed");
+  const Eigen::VectorXd levelled = solver.solve(Atb);
+  core::Trajectory out = T_world_sensor;
+  for (std::size_t i = 0; i < n; ++i)
+    out.pose(i).translation().z() = levelled(static_cast<Eigen::Index>(i));
+  return out;
+}
+
 namespace {
 
 /// Poses [first, last] of `trajectory`, re-timed to start at 0.
@@ -156,7 +220,7 @@ std::vector<Route> kittiRoutes(const std::string& data_dir, const std::string& s
   const KittiFiles files = kittiFiles(data_dir, sequence);
   const core::Trajectory T_world_velo =
       loadKittiLidarTrajectory(files.poses, files.calib, files.times);
-  return splitByLength(limitGrade(T_world_velo, kKittiMaxGrade), split.lengths);
+  return splitByLength(levelRevisits(limitGrade(T_world_velo, kKittiMaxGrade)), split.lengths);
 }
 
 // ---------------------------------------------------------------- overlaps

@@ -166,6 +166,61 @@ TEST(LimitGrade, LeavesADrivableProfileAlone) {
   EXPECT_LT(change, 0.1);  // only millimetre jitter while standing still is removed
 }
 
+/// The largest height difference between poses of `t` within `radius` of each
+/// other horizontally and at least `min_travel` metres of driving apart.
+double worstRevisitHeight(const core::Trajectory& t, double radius, double min_travel) {
+  const std::vector<double> d = t.distances();
+  double worst = 0.0;
+  for (std::size_t i = 0; i < t.size(); i += 3)
+    for (std::size_t j = 0; j < i; j += 3) {
+      if (d[i] - d[j] < min_travel) continue;
+      const Eigen::Vector3d a = t.pose(i).translation(), b = t.pose(j).translation();
+      if ((a - b).head<2>().norm() < radius) worst = std::max(worst, std::abs(a.z() - b.z()));
+    }
+  return worst;
+}
+
+TEST(LevelRevisits, SpreadsAHeightDriftOverTheDriveBetweenPasses) {
+  // Out along x, and back 3 m to the side: the return drifts 3 m down.
+  core::Trajectory t = straight({0, 0}, {1, 0}, 200);
+  const core::Trajectory back = straight({199, 3}, {-1, 0}, 200);
+  for (std::size_t i = 0; i < back.size(); ++i) {
+    Eigen::Isometry3d T = back.pose(i);
+    T.translation().z() = -3.0 * static_cast<double>(i) / 199.0;
+    t.push_back(20.0 + back.stamp(i), T);
+  }
+  ASSERT_GT(worstRevisitHeight(t, 5.0, 100.0), 2.5);
+  const core::Trajectory level = levelRevisits(t);
+  EXPECT_LT(worstRevisitHeight(level, 5.0, 100.0), 0.1);
+  for (std::size_t i = 0; i < t.size(); ++i) {
+    ASSERT_TRUE(level.pose(i).linear().isApprox(t.pose(i).linear()));
+    ASSERT_EQ(level.pose(i).translation().head<2>(), t.pose(i).translation().head<2>());
+  }
+  // A drive that never comes back keeps its profile.
+  core::Trajectory hill = straight({0, 0}, {1, 0}, 300);
+  for (std::size_t i = 0; i < hill.size(); ++i)
+    hill.pose(i).translation().z() = 0.05 * static_cast<double>(i);
+  const core::Trajectory same = levelRevisits(hill);
+  for (std::size_t i = 0; i < hill.size(); ++i)
+    ASSERT_NEAR(same.pose(i).translation().z(), hill.pose(i).translation().z(), 1e-6);
+}
+
+TEST(LevelRevisits, PutsKitti08sReturnOnTheRoadItLeft) {
+  // KITTI 08's ground truth comes back to its streets up to metres off in
+  // height; a simulated robot there would drive under the road.
+  const core::Trajectory raw = limitGrade(kittiLidar("08"), kKittiMaxGrade);
+  ASSERT_GT(worstRevisitHeight(raw, 4.0, 100.0), 2.0);
+  const core::Trajectory level = levelRevisits(raw);
+  EXPECT_LT(worstRevisitHeight(level, 4.0, 100.0), 0.3);
+  // Still a drivable profile: no 10 m stretch climbs more than 11 %.
+  for (std::size_t i = 10; i < level.size(); ++i) {
+    const Eigen::Vector3d step = level.pose(i).translation() - level.pose(i - 10).translation();
+    if (step.head<2>().norm() > 2.0) {
+      ASSERT_LT(std::abs(step.z()), 0.11 * step.head<2>().norm()) << i;
+    }
+  }
+}
+
 // ---------------------------------------------------------------- splitting
 
 TEST(SplitByLength, CutsConsecutivePiecesAndRetimesEach) {

@@ -63,6 +63,24 @@ core::Trajectory loadKittiLidarTrajectory(const std::string& poses_path,
 /// so such climbs are flattened; the rest of the profile is kept.
 core::Trajectory limitGrade(const core::Trajectory& T_world_sensor, double max_grade);
 
+/// Settings of levelRevisits.
+struct LevelConfig {
+  double radius = 5.0;         ///< m, a pose this close (horizontally) to an earlier pass is on it
+  double min_travel = 100.0;   ///< m of travel between two poses before they count as passes
+  double revisit_weight = 10;  ///< weight of "same height" against each step's kept climb
+};
+
+/// `T_world_sensor` with its heights made consistent where it drives a road
+/// again (rotations and horizontal positions unchanged). Ground truth drifts in
+/// height (KITTI 08 comes back to a street 3 m below where it left it), and
+/// limitGrade's flattening shifts the rest of a profile; a simulated world has
+/// one road there, so a robot on the later pass would drive under it. Solves
+/// one linear least-squares problem over the heights: keep each step's climb,
+/// and put poses within `radius` of each other on different passes at the same
+/// height, which spreads each disagreement over the drive between the passes.
+core::Trajectory levelRevisits(const core::Trajectory& T_world_sensor,
+                               const LevelConfig& config = {});
+
 /// Cuts `trajectory` into consecutive pieces by path length: piece i is
 /// `lengths[i]` metres long (to the nearest pose), and a last piece takes the
 /// rest, so there are lengths.size() + 1 routes. Pieces do not share poses;
@@ -100,7 +118,8 @@ KittiFiles kittiFiles(const std::string& data_dir, const std::string& sequence);
 inline constexpr double kKittiMaxGrade = 0.10;
 
 /// The robots' routes of a KITTI sequence: loaded from `data_dir`, converted to
-/// the LiDAR frame, limited to kKittiMaxGrade (limitGrade) and split by kittiSplit.
+/// the LiDAR frame, limited to kKittiMaxGrade (limitGrade), levelled where it
+/// drives a street again (levelRevisits) and split by kittiSplit.
 std::vector<Route> kittiRoutes(const std::string& data_dir, const std::string& sequence);
 
 // ---------------------------------------------------------------- overlaps
