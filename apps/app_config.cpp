@@ -47,6 +47,10 @@ void validate(const AppConfig& config, const std::string& source) {
       if (!(length > 0.0)) throw core::Error("every length must be positive");
     }
   });
+  checkField(source, "verification", [&] { registration::validate(config.verification); });
+  checkField(source, "pcm.threshold", [&] {
+    if (!(config.pcm.threshold > 0.0)) throw core::Error("must be positive");
+  });
 }
 
 }  // namespace dcl::apps

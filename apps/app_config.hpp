@@ -7,11 +7,13 @@
 #include <string>
 #include <vector>
 
+#include <dcl/backend/pcm.hpp>
 #include <dcl/odometry/external_odometry.hpp>
 #include <dcl/odometry/lidar_odometry.hpp>
 #include <dcl/odometry/local_mapper.hpp>
 #include <dcl/place/descriptor.hpp>
 #include <dcl/place/evaluation.hpp>
+#include <dcl/registration/verification.hpp>
 
 namespace dcl::apps {
 
@@ -52,12 +54,14 @@ struct PlaceSection {
 
 /// Everything `dcl-slam` can be configured with.
 struct AppConfig {
-  std::string log_level = "info";             ///< trace | debug | info | warn | error | off
-  EvalSection eval;                           ///< trajectory evaluation
-  odometry::OdometryConfig odometry;          ///< the built-in LiDAR odometry
-  odometry::ExternalOdometryConfig external;  ///< poses from another front-end
-  odometry::LocalMapperConfig mapper;         ///< keyframes, intra-robot loops, local graph
-  PlaceSection place;                         ///< place recognition
+  std::string log_level = "info";                 ///< trace | debug | info | warn | error | off
+  EvalSection eval;                               ///< trajectory evaluation
+  odometry::OdometryConfig odometry;              ///< the built-in LiDAR odometry
+  odometry::ExternalOdometryConfig external;      ///< poses from another front-end
+  odometry::LocalMapperConfig mapper;             ///< keyframes, intra-robot loops, local graph
+  PlaceSection place;                             ///< place recognition
+  registration::VerificationConfig verification;  ///< geometric verification of loop candidates
+  backend::PcmConfig pcm;                         ///< inter-robot loop outlier rejection
 
   template <class Visitor>
   void visit(Visitor& v) {
@@ -67,6 +71,8 @@ struct AppConfig {
     v.section("external", external, "external odometry (poses from another front-end)");
     v.section("mapper", mapper, "keyframes, intra-robot loop closure, local pose graph");
     v.section("place", place, "place recognition");
+    v.section("verification", verification, "geometric verification of loop candidates");
+    v.section("pcm", pcm, "PCM outlier rejection of inter-robot loops");
   }
 };
 

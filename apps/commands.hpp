@@ -40,4 +40,10 @@ void addBenchOdometryCommand(CLI::App& bench, const AppConfig& config);
 /// `bench place`: inter-robot place recognition on a dataset (precision-recall).
 void addBenchPlaceCommand(CLI::App& bench, const AppConfig& config);
 
+/// `pcm`: PCM outlier rejection of a multi-robot graph's inter-robot loops (cmd_pcm.cpp).
+void addPcmCommand(CLI::App& app, const AppConfig& config);
+
+/// `bench loops`: the inter-robot loop pipeline end to end, graded by ground truth (cmd_loops.cpp).
+void addBenchLoopsCommand(CLI::App& bench, const AppConfig& config);
+
 }  // namespace dcl::apps

@@ -56,11 +56,13 @@ int run(int argc, char** argv) {
   dcl::apps::addDemoCommand(app, config);
   dcl::apps::addSimulateCommand(app);
   dcl::apps::addOdometryCommand(app, config);
+  dcl::apps::addPcmCommand(app, config);
   auto* bench = app.add_subcommand("bench", "benchmarks of the system's parts");
   bench->require_subcommand(1);
   dcl::apps::addBenchSimCommand(*bench);
   dcl::apps::addBenchOdometryCommand(*bench, config);
   dcl::apps::addBenchPlaceCommand(*bench, config);
+  dcl::apps::addBenchLoopsCommand(*bench, config);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

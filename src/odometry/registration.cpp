@@ -8,6 +8,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_reduce.h>
 
+#include <dcl/core/step_window.hpp>
 #include <dcl/odometry/registration.hpp>
 
 namespace dcl::odometry {
@@ -216,32 +217,6 @@ Vector6d solveStep(const LinearSystem& system) {
   return -H.ldlt().solve(system.b);
 }
 
-/// The net motion of the last few Gauss-Newton steps. Correspondences flip
-/// across voxel and plane boundaries, so near the optimum Gauss-Newton often
-/// ends in a short limit cycle (steps of a millimetre that undo each other)
-/// rather than a vanishing step: a small net motion over a window ends it.
-class StepWindow {
- public:
-  /// Records `step`; returns the norm of the sum of the last kSize steps
-  /// (infinity until kSize steps were seen).
-  double add(const Vector6d& step) {
-    sum_ += step - steps_[next_];
-    steps_[next_] = step;
-    next_ = (next_ + 1) % kSize;
-    ++count_;
-    return count_ >= kSize ? sum_.norm() : std::numeric_limits<double>::infinity();
-  }
-
- private:
-  static constexpr std::size_t kSize = 8;  // covers cycles of period 1, 2, 4 and 8
-  std::array<Vector6d, kSize> steps_{Vector6d::Zero(), Vector6d::Zero(), Vector6d::Zero(),
-                                     Vector6d::Zero(), Vector6d::Zero(), Vector6d::Zero(),
-                                     Vector6d::Zero(), Vector6d::Zero()};
-  Vector6d sum_ = Vector6d::Zero();
-  std::size_t next_ = 0;
-  std::size_t count_ = 0;
-};
-
 /// The RMS range of the source points (m): the lever arm that turns a rotation
 /// into a displacement, used to compare rotational and translational information.
 double rmsRange(std::span<const Eigen::Vector3d> source) {
@@ -279,7 +254,7 @@ RegistrationResult registerScan(std::span<const Eigen::Vector3d> source_points,
   if (source_points.empty() || target_map.empty()) return result;
   std::vector<Association> associations(source_points.size());
   LinearSystem system;
-  StepWindow window;
+  core::StepWindow<8> window;  // cycles of period 1, 2, 4 and 8
   bool converged = false;
   for (int iteration = 0; iteration < config.max_iterations && !converged; ++iteration) {
     system = linearize(source_points, target_map, result.T_target_source, config,

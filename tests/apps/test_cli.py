@@ -518,5 +518,155 @@ class Place(DemoDataset):
         self.assertIn("'m2dp'", err)
 
 
+OUTLIERS = os.path.join(DATA, "pose_graphs", "multi_robot_outliers")
+
+
+def read_g2o_edges(path):
+    """(from id, to id) of every EDGE line of a g2o file."""
+    with open(path) as f:
+        return [(int(t[1]), int(t[2])) for t in (line.split() for line in f)
+                if t and t[0].startswith("EDGE")]
+
+
+def symbol_name(symbol):
+    return chr(symbol >> 56) + str(symbol & ((1 << 56) - 1))
+
+
+class Pcm(unittest.TestCase):
+    """dcl-slam pcm: outlier rejection on the benchmark graphs with outlier loops."""
+
+    def pcm(self, graph, *extra):
+        _, out, _ = run("pcm", "--graph", os.path.join(OUTLIERS, graph), *extra, "--json")
+        return json.loads(out)
+
+    def test_csail_against_its_reference_read_independently(self):
+        folder = os.path.join("mixrobust_real2d_split", "CSAIL", "spilt_190random")
+        reference = os.path.join(OUTLIERS, folder, "fullgraph_without_outliers.g2o")
+        m = self.pcm(folder, "--reference", reference)
+        self.assertEqual(m["loops"], 299)
+        self.assertEqual(m["kept"] + m["rejected"], m["loops"])
+        self.assertGreaterEqual(m["precision"], 0.99)
+        self.assertGreaterEqual(m["recall"], 0.99)
+        self.assertGreater(m["seconds"], 0.0)
+        [pair] = m["pairs"]
+        self.assertEqual(pair["robots"], ["a", "b"])
+        self.assertEqual(len(pair["kept_loops"]), m["kept"])
+        # The full graph numbers robot a's vertices first: score the kept list here.
+        with open(os.path.join(OUTLIERS, folder, "0.g2o")) as f:
+            robot_a = sum(1 for line in f if line.startswith("VERTEX"))
+        name = lambda i: f"a{i}" if i < robot_a else f"b{i - robot_a}"
+        inliers = set()
+        for a, b in read_g2o_edges(reference):
+            if (a < robot_a) != (b < robot_a):
+                inliers.add("-".join(sorted((name(a), name(b)))))
+        candidates = set()
+        for robot in ("0.g2o", "1.g2o"):
+            for a, b in read_g2o_edges(os.path.join(OUTLIERS, folder, robot)):
+                if a >> 56 != b >> 56:
+                    candidates.add("-".join(sorted((symbol_name(a), symbol_name(b)))))
+        kept = set(pair["kept_loops"])
+        self.assertEqual(kept | set(pair["rejected_loops"]), candidates)
+        self.assertAlmostEqual(m["precision"], len(kept & inliers) / len(kept))
+        self.assertAlmostEqual(m["recall"], len(kept & inliers) / len(candidates & inliers))
+
+    def test_without_reference_scores_are_null(self):
+        m = self.pcm(os.path.join("robust_distributed_mapper", "pairwise_consistency_maximization",
+                                  "spoiled", "simulation", "example_8robots"))
+        self.assertIsNone(m["precision"])
+        self.assertIsNone(m["recall"])
+        self.assertEqual(m["robots"], 8)
+        self.assertEqual(len(m["pairs"]), 28)
+        self.assertEqual(sum(p["loops"] for p in m["pairs"]), m["loops"])
+        self.assertEqual(sum(p["kept"] for p in m["pairs"]), m["kept"])
+
+    def test_threshold_from_option_and_configuration(self):
+        graph = os.path.join("mixrobust_real2d_split", "INTEL", "spilt_5_6_random")
+        default = self.pcm(graph)
+        self.assertEqual(default["threshold"], 5.348)
+        strict = self.pcm(graph, "--threshold", "0.5")
+        self.assertLessEqual(strict["kept"], default["kept"])  # fewer consistent pairs
+        with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:
+            f.write("pcm:\n  threshold: 0.5\n")
+        try:
+            configured = self.pcm(graph, "--config", f.name)
+        finally:
+            os.unlink(f.name)
+        self.assertEqual(configured["threshold"], 0.5)
+        self.assertEqual(configured["pairs"][0]["kept_loops"], strict["pairs"][0]["kept_loops"])
+
+    def test_human_readable_summary(self):
+        folder = os.path.join(OUTLIERS, "mixrobust_real2d_split", "INTEL", "spilt_5_6_spoiled")
+        _, out, _ = run("pcm", "--graph", folder, "--reference",
+                        os.path.join(folder, "fullgraph_without_outliers.g2o"))
+        self.assertIn("a-b: 123 loops", out)
+        self.assertIn("precision", out)
+        code, out, _ = run("pcm", "--help", check=False)
+        self.assertEqual(code, 0)
+        self.assertIn("--reference", out)
+
+    def test_damaged_line_is_named_and_can_be_skipped(self):
+        graph = os.path.join(OUTLIERS, "robust_distributed_mapper",
+                             "pairwise_consistency_maximization", "spoiled", "simulation",
+                             "example_2robots")
+        code, _, err = run("pcm", "--graph", graph, check=False)
+        self.assertEqual(code, 1)
+        self.assertIn("1.g2o:16", err)
+        self.assertEqual(len(err.strip().splitlines()), 1)
+        _, out, err = run("pcm", "--graph", graph, "--skip-unknown-lines", "--json")
+        self.assertEqual(json.loads(out)["loops"], 20)
+        self.assertIn("1.g2o:16", err)
+
+    def test_reference_of_another_graph_is_refused(self):
+        code, _, err = run(
+            "pcm", "--graph", os.path.join(OUTLIERS, "mixrobust_real2d_split", "CSAIL", "spilt"),
+            "--reference", os.path.join(OUTLIERS, "mixrobust_real2d_split", "INTEL", "spilt",
+                                        "fullgraph_without_outliers.g2o"), check=False)
+        self.assertEqual(code, 1)
+        self.assertIn("not a reference of this graph", err)
+        self.assertIn("INTEL", err)
+
+
+
+class Loops(unittest.TestCase):
+    """dcl-slam bench loops: place search, verification and PCM end to end on
+    the perceptual-aliasing corridor, where identical blocks repeat every 48 m."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.dataset = os.path.join(cls.tmp.name, "aliasing-3")
+        run("simulate", "--preset", "aliasing-3", "--out", cls.dataset)
+        cls.out = os.path.join(cls.tmp.name, "loops")
+        _, stdout, _ = run("bench", "loops", "--dataset", cls.dataset, "--out", cls.out, "--json")
+        cls.metrics = json.loads(stdout)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def test_no_false_loop_survives_while_true_ones_do(self):
+        loops = self.metrics["loops"]
+        # The world fools place recognition and verification alike: aliases a
+        # block or more away align as well as the true place does...
+        self.assertGreater(loops["verified_wrong"], 50)
+        # ...and PCM keeps none of them, but keeps most true loops.
+        self.assertEqual(loops["kept_wrong"], 0)
+        self.assertEqual(loops["precision"], 1.0)
+        self.assertGreater(loops["kept_correct"], 100)
+        self.assertGreater(loops["recall"], 0.6)
+
+    def test_every_candidate_is_graded_in_the_csv(self):
+        with open(os.path.join(self.out, "loops.csv")) as f:
+            rows = list(csv.DictReader(f))
+        self.assertEqual(len(rows), self.metrics["loops"]["candidates"])
+        kept = [r for r in rows if r["kept"] == "1"]
+        self.assertEqual(len(kept), self.metrics["loops"]["kept"])
+        for r in kept:
+            self.assertEqual(r["verified"], "1")
+            self.assertLess(float(r["error_m"]), 1.0)  # the pose it measures is right
+        # The compact verification cloud of a VLP-16 keyframe is a few kB.
+        self.assertLess(self.metrics["loops"]["wire_bytes_mean"], 25000)
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -4,69 +4,26 @@
 // truth in the LiDAR frame, and the small_gicp outdoor pair.
 
 #include <Eigen/Geometry>
-#include <cstdio>
-#include <fstream>
-#include <string>
 #include <vector>
 
-#include <dcl/core/point_cloud.hpp>
-#include <dcl/core/se3.hpp>
-#include <dcl/io/kitti_scan.hpp>
-#include <dcl/io/pose_file.hpp>
+#include "../common/kitti_test_data.hpp"
 
 namespace dcl::odometry::test {
 
-/// The folder of the shared third-party data.
-inline std::string dataDir() {
-  return DCL_DATA_DIR;
-}
+using dcl::test::dataDir;
+using dcl::test::kittiScan;
+using dcl::test::PoseError;
+using dcl::test::poseError;
+using dcl::test::readMatrix4;
 
-/// KITTI 00 scan `frame` (HDL-64, no per-point times).
-inline core::PointCloud kittiScan(int frame) {
-  char name[16];
-  std::snprintf(name, sizeof(name), "%06d.bin", frame);
-  return io::readKittiScan(dataDir() + "/lidar_scans/kitti_00/velodyne/" + name);
-}
-
-/// KITTI 00 ground truth as LiDAR poses: T_lidar = Tr^-1 T_cam Tr.
+/// KITTI 00 ground truth as LiDAR poses.
 inline std::vector<Eigen::Isometry3d> kittiLidarGroundTruth() {
-  const auto calib = io::readKittiCalib(dataDir() + "/lidar_scans/kitti_00/calib.txt");
-  const auto camera = io::readKittiPoses(dataDir() + "/trajectories/evo/KITTI_00_gt.txt");
-  std::vector<Eigen::Isometry3d> poses;
-  for (const auto& T_cam : camera.poses()) {
-    poses.push_back(calib.T_cam_velo.inverse() * T_cam * calib.T_cam_velo);
-  }
-  return poses;
+  return dcl::test::kittiLidarPoses();
 }
 
 /// The ground-truth motion T_i_j between KITTI 00 frames i and j, LiDAR frame.
 inline Eigen::Isometry3d kittiMotion(int i, int j) {
-  static const std::vector<Eigen::Isometry3d> poses = kittiLidarGroundTruth();
-  return poses[static_cast<std::size_t>(i)].inverse() * poses[static_cast<std::size_t>(j)];
-}
-
-/// A 4x4 row-major rigid transform as small_gicp's T_target_source.txt holds it.
-inline Eigen::Isometry3d readMatrix4(const std::string& path) {
-  std::ifstream in(path);
-  Eigen::Matrix4d m;
-  for (int r = 0; r < 4; ++r) {
-    for (int c = 0; c < 4; ++c) in >> m(r, c);
-  }
-  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = core::projectToSO3(m.topLeftCorner<3, 3>());
-  T.translation() = m.topRightCorner<3, 1>();
-  return T;
-}
-
-/// Translation (m) and rotation (deg) of the error between two poses.
-struct PoseError {
-  double translation = 0.0;
-  double rotation_deg = 0.0;
-};
-
-inline PoseError poseError(const Eigen::Isometry3d& estimate, const Eigen::Isometry3d& truth) {
-  const Eigen::Isometry3d E = truth.inverse() * estimate;
-  return {E.translation().norm(), core::rad2deg(core::rotationAngle(E.rotation()))};
+  return dcl::test::kittiRelative(i, j);
 }
 
 }  // namespace dcl::odometry::test

@@ -8,16 +8,12 @@
 #include <string>
 
 #include <dcl/core/point_cloud.hpp>
-#include <dcl/io/kitti_scan.hpp>
+
+#include "../common/kitti_test_data.hpp"
 
 namespace dcl::place::test {
 
-/// The KITTI 00 scan `frame` (0-5, 94, 95, 198, 199 are in the data folder).
-inline core::PointCloud kittiScan(int frame) {
-  char name[32];
-  std::snprintf(name, sizeof(name), "%06d.bin", frame);
-  return io::readKittiScan(std::string(DCL_DATA_DIR) + "/lidar_scans/kitti_00/velodyne/" + name);
-}
+using dcl::test::kittiScan;
 
 /// `cloud` turned by `yaw` (rad) about z: the scan a sensor turned by -yaw would see.
 inline core::PointCloud rotatedZ(const core::PointCloud& cloud, double yaw) {

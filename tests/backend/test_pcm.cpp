@@ -1,0 +1,565 @@
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <random>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include <dcl/backend/pcm.hpp>
+#include <dcl/backend/pcm_evaluation.hpp>
+#include <dcl/backend/pcm_trajectory.hpp>
+#include <dcl/core/error.hpp>
+
+namespace dcl::backend {
+namespace {
+
+namespace fs = std::filesystem;
+
+core::PoseKey key(int robot, int keyframe) {
+  return {core::RobotId(static_cast<std::uint8_t>(robot)),
+          core::KeyframeId(static_cast<std::uint64_t>(keyframe))};
+}
+
+std::string outliersPath(const std::string& relative) {
+  return std::string(DCL_DATA_DIR) + "/pose_graphs/multi_robot_outliers/" + relative;
+}
+
+core::Matrix6d diagonalInformation(double sigma_translation, double sigma_rotation) {
+  const double t = 1.0 / (sigma_translation * sigma_translation);
+  const double r = 1.0 / (sigma_rotation * sigma_rotation);
+  return core::Vector6d(t, t, t, r, r, r).asDiagonal();
+}
+
+/// A random tangent vector with the given standard deviations.
+core::Vector6d noise(std::mt19937& rng, double sigma_translation, double sigma_rotation) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  core::Vector6d xi;
+  for (int k = 0; k < 6; ++k) xi[k] = n(rng) * (k < 3 ? sigma_translation : sigma_rotation);
+  return xi;
+}
+
+/// A winding 3D path: every axis of translation and rotation moves.
+std::vector<Eigen::Isometry3d> path(int n, double phase) {
+  std::vector<Eigen::Isometry3d> poses;
+  for (int i = 0; i < n; ++i) {
+    const double a = 0.2 * i + phase;
+    const Eigen::Matrix3d R = (Eigen::AngleAxisd(a + 1.57, Eigen::Vector3d::UnitZ()) *
+                               Eigen::AngleAxisd(0.1 * std::sin(a), Eigen::Vector3d::UnitX()) *
+                               Eigen::AngleAxisd(0.1 * std::cos(a), Eigen::Vector3d::UnitY()))
+                                  .toRotationMatrix();
+    poses.push_back(
+        core::makePose(Eigen::Vector3d(8 * std::cos(a), 8 * std::sin(a), 0.1 * i + 3 * phase), R));
+  }
+  return poses;
+}
+
+/// Two robots on overlapping paths with odometry and inter-robot loops whose
+/// noise is a third of what their information claims.
+struct TwoRobots {
+  static constexpr double kOdomT = 0.05, kOdomR = 0.01, kLoopT = 0.1, kLoopR = 0.02;
+  std::vector<Eigen::Isometry3d> a = path(60, 0.0);
+  std::vector<Eigen::Isometry3d> b = path(50, 0.7);
+  std::vector<Factor> odometry;
+  std::vector<Factor> loops;     ///< true loops
+  std::vector<Factor> outliers;  ///< wrong loops
+  std::mt19937 rng{11};
+
+  TwoRobots() {
+    for (const auto* traj : {&a, &b}) {
+      const int r = traj == &a ? 0 : 1;
+      for (std::size_t i = 0; i + 1 < traj->size(); ++i) {
+        const Eigen::Isometry3d T = (*traj)[i].inverse() * (*traj)[i + 1] *
+                                    core::expSE3(noise(rng, kOdomT / 3, kOdomR / 3));
+        odometry.push_back({key(r, static_cast<int>(i)), key(r, static_cast<int>(i + 1)), T,
+                            diagonalInformation(kOdomT, kOdomR), FactorKind::odometry});
+      }
+    }
+    std::uniform_int_distribution<int> ka(0, 59), kb(0, 49);
+    for (int n = 0; n < 25; ++n) loops.push_back(loop(ka(rng), kb(rng), true));
+    for (int n = 0; n < 15; ++n) outliers.push_back(loop(ka(rng), kb(rng), false));
+  }
+
+  Factor loop(int i, int k, bool correct) {
+    Eigen::Isometry3d T = a[i].inverse() * b[k] * core::expSE3(noise(rng, kLoopT / 3, kLoopR / 3));
+    if (!correct) T = T * core::expSE3(noise(rng, 3.0, 0.5));
+    return {key(0, i), key(1, k), T, diagonalInformation(kLoopT, kLoopR), FactorKind::inter_loop};
+  }
+};
+
+std::set<LoopId> idsOf(const std::vector<Factor>& loops) {
+  std::set<LoopId> ids;
+  for (const Factor& f : loops) ids.insert(loopId(f));
+  return ids;
+}
+
+/// Composes factors i -> i+1 -> ... -> j directly, as the definition of the
+/// relative pose along a chain and its first-order covariance.
+RelativePose composeChain(const std::vector<Factor>& odometry, int i, int j) {
+  RelativePose p;
+  for (int k = i; k < j; ++k) {
+    const Factor& f = odometry[static_cast<std::size_t>(k)];
+    const core::Matrix6d ad = core::adjoint(f.T_from_to.inverse());
+    p.covariance = ad * p.covariance * ad.transpose() + covarianceOf(f.information);
+    p.T_i_j = p.T_i_j * f.T_from_to;
+  }
+  return p;
+}
+
+double relativeError(const core::Matrix6d& got, const core::Matrix6d& expected) {
+  return (got - expected).norm() / expected.norm();
+}
+
+// ---------------------------------------------------------------------------
+// Trajectory trees
+
+TEST(TrajectoryTree, ChainRelativePoseIsTheComposedOdometry) {
+  const TwoRobots s;
+  TrajectoryTree tree(core::RobotId(0));
+  for (const Factor& f : s.odometry) {
+    if (f.from.robot == core::RobotId(0)) tree.add(f);
+  }
+  EXPECT_EQ(tree.size(), 60U);
+  for (const auto& [i, j] : {std::pair{3, 41}, std::pair{0, 59}, std::pair{17, 18}}) {
+    const RelativePose expected = composeChain(s.odometry, i, j);
+    const RelativePose got = tree.relative(core::KeyframeId(i), core::KeyframeId(j));
+    EXPECT_TRUE(got.T_i_j.isApprox(expected.T_i_j, 1e-9));
+    EXPECT_LT(relativeError(got.covariance, expected.covariance), 1e-8) << i << "-" << j;
+    // Backwards: the inverse, its covariance carried to the other end.
+    const RelativePose back = tree.relative(core::KeyframeId(j), core::KeyframeId(i));
+    const core::Matrix6d ad = core::adjoint(expected.T_i_j);
+    EXPECT_TRUE(back.T_i_j.isApprox(expected.T_i_j.inverse(), 1e-9));
+    EXPECT_LT(relativeError(back.covariance, ad * expected.covariance * ad.transpose()), 1e-8);
+  }
+  EXPECT_TRUE(tree.relative(core::KeyframeId(5), core::KeyframeId(5)).covariance.isZero());
+  EXPECT_THROW((void)tree.relative(core::KeyframeId(0), core::KeyframeId(60)), core::Error);
+}
+
+TEST(TrajectoryTree, IntraRobotLoopShortensThePathBetweenItsEnds) {
+  const TwoRobots s;
+  const Factor shortcut{key(0, 2), key(0, 55), s.a[2].inverse() * s.a[55],
+                        diagonalInformation(0.08, 0.01), FactorKind::intra_loop};
+  TrajectoryTree tree(core::RobotId(0));
+  TrajectoryTree chain(core::RobotId(0), core::KeyframeId(0), false);
+  for (const Factor& f : s.odometry) {
+    if (f.from.robot == core::RobotId(0)) tree.add(f), chain.add(f);
+  }
+  const std::uint64_t before = tree.revision();
+  tree.add(shortcut);
+  chain.add(shortcut);
+  EXPECT_GT(tree.revision(), before);  // keyframes after 29 now hang off the loop
+  const RelativePose through_loop = tree.relative(core::KeyframeId(2), core::KeyframeId(55));
+  EXPECT_TRUE(through_loop.T_i_j.isApprox(shortcut.T_from_to, 1e-12));
+  EXPECT_LT(relativeError(through_loop.covariance, covarianceOf(shortcut.information)), 1e-9);
+  // Two keyframes near the loop's ends: odometry to the loop, the loop, odometry on.
+  const RelativePose near = tree.relative(core::KeyframeId(1), core::KeyframeId(57));
+  const RelativePose along_chain = chain.relative(core::KeyframeId(1), core::KeyframeId(57));
+  EXPECT_LT(near.covariance.trace(), 0.05 * along_chain.covariance.trace());
+  EXPECT_LT(relativeError(along_chain.covariance, composeChain(s.odometry, 1, 57).covariance),
+            1e-8);
+  // Appending the next keyframe's odometry keeps every path.
+  const std::uint64_t revision = tree.revision();
+  tree.add({key(0, 60), key(0, 59), Eigen::Isometry3d::Identity(), diagonalInformation(0.05, 0.01),
+            FactorKind::odometry});
+  EXPECT_EQ(tree.revision(), revision);
+  EXPECT_TRUE(tree.reaches(core::KeyframeId(60)));
+}
+
+TEST(TrajectoryTree, NumbersDoNotDependOnTheOrderFactorsArrive) {
+  const TwoRobots s;
+  std::vector<Factor> factors;
+  for (const Factor& f : s.odometry) {
+    if (f.from.robot == core::RobotId(1)) factors.push_back(f);
+  }
+  factors.push_back({key(1, 4), key(1, 40), s.b[4].inverse() * s.b[40],
+                     diagonalInformation(0.1, 0.02), FactorKind::intra_loop});
+  factors.push_back({key(1, 45), key(1, 12), s.b[45].inverse() * s.b[12],
+                     diagonalInformation(0.1, 0.02), FactorKind::intra_loop});
+  TrajectoryTree in_order(core::RobotId(1));
+  for (const Factor& f : factors) in_order.add(f);
+  std::mt19937 rng(3);
+  std::shuffle(factors.begin(), factors.end(), rng);
+  TrajectoryTree shuffled(core::RobotId(1));
+  for (const Factor& f : factors) shuffled.add(f);
+  for (int i = 0; i < 50; i += 7) {
+    for (int j = 0; j < 50; j += 5) {
+      const RelativePose p = in_order.relative(core::KeyframeId(i), core::KeyframeId(j));
+      const RelativePose q = shuffled.relative(core::KeyframeId(i), core::KeyframeId(j));
+      ASSERT_EQ(p.T_i_j.matrix(), q.T_i_j.matrix());
+      ASSERT_EQ(p.covariance, q.covariance);
+    }
+  }
+}
+
+TEST(TrajectoryTree, RefusesFactorsItCannotUse) {
+  TrajectoryTree tree(core::RobotId(0));
+  const auto info = diagonalInformation(0.1, 0.01);
+  const Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  EXPECT_THROW(tree.add({key(0, 1), key(0, 3), T, info, FactorKind::odometry}), core::Error);
+  EXPECT_THROW(tree.add({key(1, 1), key(1, 2), T, info, FactorKind::odometry}), core::Error);
+  EXPECT_THROW(tree.add({key(0, 1), key(1, 2), T, info, FactorKind::inter_loop}), core::Error);
+  EXPECT_THROW(tree.add({key(0, 4), key(0, 4), T, info, FactorKind::intra_loop}), core::Error);
+  tree.add({key(0, 2), key(0, 3), T, info, FactorKind::odometry});  // not connected yet
+  EXPECT_FALSE(tree.reaches(core::KeyframeId(2)));
+  tree.add({key(0, 1), key(0, 2), T, info, FactorKind::odometry});
+  tree.add({key(0, 1), key(0, 0), T, info, FactorKind::odometry});
+  EXPECT_TRUE(tree.reaches(core::KeyframeId(3)));
+}
+
+// ---------------------------------------------------------------------------
+// The consistency metric (Eq. 8)
+
+TEST(PcmConsistency, TrueLoopsCloseTheCycleExactly) {
+  const std::vector<Eigen::Isometry3d> a = path(30, 0.0);
+  const std::vector<Eigen::Isometry3d> b = path(30, 1.1);
+  TrajectoryTree ta(core::RobotId(0)), tb(core::RobotId(1));
+  const auto info = diagonalInformation(0.1, 0.01);
+  for (int i = 0; i + 1 < 30; ++i) {
+    ta.add({key(0, i), key(0, i + 1), a[i].inverse() * a[i + 1], info, FactorKind::odometry});
+    tb.add({key(1, i), key(1, i + 1), b[i].inverse() * b[i + 1], info, FactorKind::odometry});
+  }
+  const auto loop = [&](int i, int k) {
+    return Factor{key(0, i), key(1, k), a[i].inverse() * b[k], info, FactorKind::inter_loop};
+  };
+  EXPECT_LT(cycleDistance(loop(3, 20), loop(25, 4), ta, tb), 1e-12);
+  EXPECT_LT(cycleDistance(loop(25, 4), loop(3, 20), ta, tb), 1e-12);
+  EXPECT_LT(cycleDistance(loop(0, 0), loop(29, 29), ta, tb), 1e-12);
+  Factor wrong = loop(25, 4);
+  wrong.T_from_to = wrong.T_from_to * core::expSE3(core::Vector6d(2, 0, 0, 0, 0, 0.3));
+  EXPECT_GT(cycleDistance(loop(3, 20), wrong, ta, tb), PcmConfig{}.threshold);
+  EXPECT_GT(cycleDistance(loop(24, 5), wrong, ta, tb), 30 * PcmConfig{}.threshold);  // short cycle
+  EXPECT_THROW((void)cycleDistance(loop(3, 20), invertFactor(wrong), ta, tb), core::Error);
+}
+
+TEST(PcmConsistency, MahalanobisDistanceSumsTheCovariancesAroundTheCycle) {
+  // Straight tracks without rotation and with rotation variances of ~1e-12, so
+  // the cycle's translation covariance is the plain sum of its parts:
+  // 2 sigma_loop^2 + (n + m) sigma_odometry^2 per axis.
+  constexpr int n = 10, m = 6;
+  constexpr double sigma_odometry = 0.1, sigma_loop = 0.2;
+  TrajectoryTree ta(core::RobotId(0)), tb(core::RobotId(1));
+  const auto step = [](double x, double y) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(x, y, 0);
+    return T;
+  };
+  for (int i = 0; i < n; ++i) {
+    ta.add({key(0, i), key(0, i + 1), step(1, 0), diagonalInformation(sigma_odometry, 1e-6),
+            FactorKind::odometry});
+  }
+  for (int k = 0; k < m; ++k) {
+    tb.add({key(1, k), key(1, k + 1), step(0.5, 0.5), diagonalInformation(sigma_odometry, 1e-6),
+            FactorKind::odometry});
+  }
+  const auto loop_info = diagonalInformation(sigma_loop, 1e-6);
+  const Factor first{key(0, 0), key(1, 0), step(0, 4), loop_info, FactorKind::inter_loop};
+  // True: b_m is at (3, 7), a_n at (10, 0).
+  Factor second{key(0, n), key(1, m), step(-7, 7), loop_info, FactorKind::inter_loop};
+  EXPECT_LT(cycleDistance(first, second, ta, tb), 1e-9);
+  const Eigen::Vector3d delta(0.3, -0.2, 0.1);
+  second.T_from_to = step(-7 + delta.x(), 7 + delta.y());
+  second.T_from_to.translation().z() = delta.z();
+  const double variance = 2 * sigma_loop * sigma_loop + (n + m) * sigma_odometry * sigma_odometry;
+  EXPECT_NEAR(cycleDistance(first, second, ta, tb), delta.squaredNorm() / variance, 1e-6);
+}
+
+// ---------------------------------------------------------------------------
+// PairwiseConsistency
+
+TEST(PairwiseConsistency, KeepsTheTrueLoopsAndRejectsTheWrongOnes) {
+  const TwoRobots s;
+  PairwiseConsistency pcm(core::RobotId(0), core::RobotId(1));
+  for (const Factor& f : s.odometry) pcm.addRobotFactor(f);
+  for (const Factor& f : s.loops) pcm.addLoop(f);
+  for (const Factor& f : s.outliers) pcm.addLoop(f);
+  const PcmDecision& d = pcm.decide();
+  EXPECT_TRUE(d.exact);
+  EXPECT_EQ(idsOf(d.accepted), idsOf(s.loops));
+  EXPECT_EQ(idsOf(d.rejected), idsOf(s.outliers));
+  EXPECT_TRUE(d.unverified.empty());
+  EXPECT_GE(d.consistent_pairs, s.loops.size() * (s.loops.size() - 1) / 2);
+  EXPECT_FALSE(pcm.addLoop(invertFactor(s.loops.front())));  // the same loop, seen from b
+  EXPECT_THROW(pcm.addLoop({key(0, 1), key(2, 1), Eigen::Isometry3d::Identity(),
+                            core::Matrix6d::Identity(), FactorKind::inter_loop}),
+               core::Error);
+}
+
+TEST(PairwiseConsistency, HoldsBackAConsistentSetFromAFewNeighbouringKeyframes) {
+  // Three loops from neighbouring keyframes, all wrong by the same offset (a
+  // repeated block seen three times): they agree with each other, and nothing
+  // contradicts them, but they cover a metre of either trajectory.
+  TwoRobots s;
+  const Eigen::Isometry3d offset =
+      core::makePose(Eigen::Vector3d(48, 0, 0), Eigen::Matrix3d::Identity());
+  PairwiseConsistency pcm(core::RobotId(0), core::RobotId(1));
+  for (const Factor& f : s.odometry) pcm.addRobotFactor(f);
+  for (int i = 20; i < 23; ++i) {
+    // Robot b's keyframe as if its whole trajectory stood 48 m away: three
+    // loops with one wrong offset between the robots' frames.
+    const Eigen::Isometry3d T =
+        s.a[static_cast<std::size_t>(i)].inverse() * offset * s.b[static_cast<std::size_t>(i - 5)];
+    pcm.addLoop({key(0, i), key(1, i - 5), T,
+                 diagonalInformation(TwoRobots::kLoopT, TwoRobots::kLoopR),
+                 FactorKind::inter_loop});
+  }
+  const PcmDecision& held = pcm.decide();
+  EXPECT_TRUE(held.too_short);
+  EXPECT_TRUE(held.accepted.empty());
+  EXPECT_EQ(held.unverified.size(), 3U);
+  // The true loops, spread over both trajectories, are kept once they arrive
+  // and outnumber the wrong cluster; without the check the cluster is kept.
+  for (const Factor& f : s.loops) pcm.addLoop(f);
+  const PcmDecision& kept = pcm.decide();
+  EXPECT_FALSE(kept.too_short);
+  EXPECT_EQ(idsOf(kept.accepted), idsOf(s.loops));
+  PcmConfig published;
+  published.min_span = 0.0;
+  PairwiseConsistency paper(core::RobotId(0), core::RobotId(1), published);
+  for (const Factor& f : s.odometry) paper.addRobotFactor(f);
+  for (const Factor& f : pcm.loops()) {
+    if (!idsOf(s.loops).contains(loopId(f))) paper.addLoop(f);
+  }
+  EXPECT_EQ(paper.decide().accepted.size(), 3U);
+}
+
+TEST(PairwiseConsistency, IncrementalDecisionsEqualTheBatchOne) {
+  const TwoRobots s;
+  std::vector<Factor> candidates = s.loops;
+  candidates.insert(candidates.end(), s.outliers.begin(), s.outliers.end());
+  std::mt19937 rng(8);
+  std::shuffle(candidates.begin(), candidates.end(), rng);
+  PairwiseConsistency batch(core::RobotId(0), core::RobotId(1));
+  for (const Factor& f : s.odometry) batch.addRobotFactor(f);
+  for (const Factor& f : candidates) batch.addLoop(f);
+  const std::set<LoopId> expected = idsOf(batch.decide().accepted);
+
+  PairwiseConsistency incremental(core::RobotId(0), core::RobotId(1));
+  for (const Factor& f : s.odometry) incremental.addRobotFactor(f);
+  std::set<LoopId> last;
+  for (const Factor& f : candidates) {
+    incremental.addLoop(f);
+    last = idsOf(incremental.decide().accepted);
+    EXPECT_TRUE(incremental.decide().exact);
+  }
+  EXPECT_EQ(last, expected);
+
+  // Loops before the odometry: unverified until the trajectories reach them.
+  PairwiseConsistency early(core::RobotId(0), core::RobotId(1));
+  for (const Factor& f : candidates) early.addLoop(f);
+  EXPECT_EQ(early.decide().unverified.size(), candidates.size());
+  EXPECT_TRUE(early.decide().accepted.empty());
+  for (const Factor& f : s.odometry) early.addRobotFactor(f);
+  EXPECT_EQ(idsOf(early.decide().accepted), expected);
+  EXPECT_TRUE(early.decide().unverified.empty());
+}
+
+TEST(PairwiseConsistency, ANewIntraRobotLoopHasEveryPairCheckedAgain) {
+  const TwoRobots s;
+  const Factor intra{key(0, 5), key(0, 50), s.a[5].inverse() * s.a[50],
+                     diagonalInformation(0.05, 0.01), FactorKind::intra_loop};
+  PairwiseConsistency late(core::RobotId(0), core::RobotId(1));
+  for (const Factor& f : s.odometry) late.addRobotFactor(f);
+  for (const Factor& f : s.loops) late.addLoop(f);
+  for (const Factor& f : s.outliers) late.addLoop(f);
+  (void)late.decide();
+  late.addRobotFactor(intra);
+  PairwiseConsistency batch(core::RobotId(1), core::RobotId(0));
+  batch.addRobotFactor(intra);
+  for (const Factor& f : s.odometry) batch.addRobotFactor(f);
+  for (const Factor& f : s.outliers) batch.addLoop(f);
+  for (const Factor& f : s.loops) batch.addLoop(f);
+  EXPECT_EQ(late.decide().consistent_pairs, batch.decide().consistent_pairs);
+  EXPECT_EQ(idsOf(late.decide().accepted), idsOf(batch.decide().accepted));
+}
+
+/// The loops and the odometry and intra-robot loops of a graph's first robot pair.
+struct PairData {
+  std::vector<Factor> robot_factors;
+  std::vector<Factor> loops;
+};
+
+PairData pairData(const PoseGraph& graph) {
+  PairData d;
+  for (const Factor& f : graph.factors()) {
+    (f.from.robot == f.to.robot ? d.robot_factors : d.loops).push_back(f);
+  }
+  return d;
+}
+
+TEST(PairwiseConsistency, BothRobotsReachTheSameDecisionInAnyOrder) {
+  // CSAIL split in two robots with 190 random wrong loops among 299.
+  const PoseGraph graph =
+      readMultiRobotGraph(outliersPath("mixrobust_real2d_split/CSAIL/spilt_190random"));
+  PairData d = pairData(graph);
+  ASSERT_EQ(d.loops.size(), 299U);
+  PairwiseConsistency robot_a(core::RobotId(0), core::RobotId(1));
+  for (const Factor& f : d.robot_factors) robot_a.addRobotFactor(f);
+  for (const Factor& f : d.loops) robot_a.addLoop(f);
+  const PcmDecision decision_a = robot_a.decide();
+
+  // Robot b holds every loop as measured from its side and gets everything in
+  // another order, deciding now and then on the way.
+  std::mt19937 rng(21);
+  std::shuffle(d.robot_factors.begin(), d.robot_factors.end(), rng);
+  std::shuffle(d.loops.begin(), d.loops.end(), rng);
+  PairwiseConsistency robot_b(core::RobotId(1), core::RobotId(0));
+  for (std::size_t i = 0; i < d.loops.size(); ++i) {
+    robot_b.addLoop(invertFactor(d.loops[i]));
+    if (i % 50 == 0) (void)robot_b.decide();
+  }
+  for (const Factor& f : d.robot_factors) robot_b.addRobotFactor(f);
+  const PcmDecision& decision_b = robot_b.decide();
+  EXPECT_EQ(robot_b.robots(), robot_a.robots());
+  EXPECT_EQ(idsOf(decision_b.accepted), idsOf(decision_a.accepted));
+  EXPECT_EQ(idsOf(decision_b.rejected), idsOf(decision_a.rejected));
+  EXPECT_EQ(decision_b.consistent_pairs, decision_a.consistent_pairs);
+  EXPECT_EQ(decision_a.accepted.size(), 109U);  // the reference's inter-robot loops
+}
+
+// ---------------------------------------------------------------------------
+// Real multi-robot graphs with outlier loops, against their outlier-free references
+
+/// PCM as published (no min_span): these graphs come from simulators of other
+/// scales (ARGoS robots move centimetres), and their references were made by it.
+PcmConfig publishedPcm() {
+  PcmConfig config;
+  config.min_span = 0.0;
+  return config;
+}
+
+LoopScore scoreGraph(const std::string& graph_path, const std::string& reference_path,
+                     const PcmConfig& config = publishedPcm()) {
+  const PoseGraph graph = readMultiRobotGraph(outliersPath(graph_path));
+  const std::set<LoopId> reference = readReferenceLoops(outliersPath(reference_path), graph);
+  const PcmResult result = runPcm(graph, config);
+  for (const auto& pair : result.pairs) EXPECT_TRUE(pair.decision.exact);
+  return scoreLoops(result, reference);
+}
+
+TEST(PcmOnRealGraphs, CsailWith190RandomOutliers) {
+  const LoopScore s = scoreGraph("mixrobust_real2d_split/CSAIL/spilt_190random",
+                                 "mixrobust_real2d_split/CSAIL/spilt_190random/"
+                                 "fullgraph_without_outliers.g2o");
+  EXPECT_EQ(s.candidates, 299U);
+  EXPECT_EQ(s.inliers, 109U);
+  EXPECT_GE(s.precision, 0.99);
+  EXPECT_GE(s.recall, 0.99);
+}
+
+TEST(PcmOnRealGraphs, IntelWithMostLoopsWrong) {
+  // 23 true loops among 123: intra-robot loops make the difference.
+  const std::string graph = "mixrobust_real2d_split/INTEL/spilt_5_6_random";
+  const std::string reference = graph + "/fullgraph_without_outliers.g2o";
+  const LoopScore s = scoreGraph(graph, reference);
+  EXPECT_EQ(s.inliers, 23U);
+  EXPECT_GE(s.precision, 0.99);
+  EXPECT_GE(s.recall, 0.95);
+  PcmConfig chain_only = publishedPcm();
+  chain_only.intra_loops = false;
+  EXPECT_LT(scoreGraph(graph, reference, chain_only).precision, s.precision);
+}
+
+TEST(PcmOnRealGraphs, City10000WithConsistentOutlierGroups) {
+  const LoopScore s = scoreGraph("mixrobust_real2d_split/city10000/spilt_part_spoiled",
+                                 "mixrobust_real2d_split/city10000/spilt_part/fullgraph.g2o");
+  EXPECT_EQ(s.candidates, 726U);
+  EXPECT_EQ(s.inliers, 626U);
+  EXPECT_GE(s.precision, 0.99);
+  EXPECT_GE(s.recall, 0.99);
+}
+
+TEST(PcmOnRealGraphs, SimulatedEightRobotsKeepFourLoopsPerPair) {
+  // The PCM simulation writes each robot pair's four true loops first, then
+  // four wrong ones (its own test expects 4 accepted per pair); that layout is
+  // the reference here.
+  const PoseGraph graph = readMultiRobotGraph(
+      outliersPath("robust_distributed_mapper/pairwise_consistency_maximization/spoiled/simulation/"
+                   "example_8robots"));
+  std::map<std::pair<core::RobotId, core::RobotId>, int> seen;
+  std::set<LoopId> reference;
+  for (const Factor& f : graph.factors()) {
+    if (f.from.robot == f.to.robot) continue;
+    const LoopId id = loopId(f);
+    if (seen[{id.first.robot, id.second.robot}]++ < 4) reference.insert(id);
+  }
+  ASSERT_EQ(seen.size(), 28U);
+  const LoopScore s = scoreLoops(runPcm(graph, publishedPcm()), reference);
+  EXPECT_EQ(s.inliers, 112U);
+  EXPECT_GE(s.precision, 0.99);
+  EXPECT_GE(s.recall, 0.99);
+}
+
+TEST(PcmOnRealGraphs, ArgosLoopsNeedTheirCovariancesInflated) {
+  // The ARGoS graphs state 0.1 m / 0.01 rad for loops that close cycles with
+  // metres of error: at the default threshold most true loops look
+  // inconsistent. A threshold 100 times larger is the same test with every
+  // covariance 100 times larger (standard deviations 10 times).
+  const std::string clean = "robust_distributed_mapper/argos_simulation/clean/example_4robots";
+  const LoopScore strict = scoreGraph(clean, clean);
+  PcmConfig inflated = publishedPcm();
+  inflated.threshold = 100 * PcmConfig{}.threshold;
+  const LoopScore s = scoreGraph(clean, clean, inflated);
+  EXPECT_EQ(s.inliers, 83U);
+  EXPECT_GE(s.precision, 0.99);
+  EXPECT_GE(s.recall, 0.95);
+  EXPECT_LT(strict.recall, 0.5);
+}
+
+// ---------------------------------------------------------------------------
+// Reading graphs and references
+
+TEST(PcmEvaluation, RobotFoldersMergeAndReferencesAreMatchedByKey) {
+  const PoseGraph graph =
+      readMultiRobotGraph(outliersPath("mixrobust_real2d_split/INTEL/spilt_5_6_spoiled"));
+  std::size_t inter = 0;
+  for (const Factor& f : graph.factors()) inter += f.from.robot != f.to.robot;
+  EXPECT_EQ(inter, 123U);  // each loop is in both robots' files, counted once
+  EXPECT_EQ(graph.size(), 1228U);
+  const std::set<LoopId> reference = readReferenceLoops(
+      outliersPath("mixrobust_real2d_split/INTEL/spilt_5_6_spoiled/fullgraph_without_outliers.g2o"),
+      graph);
+  EXPECT_EQ(reference.size(), 23U);
+  for (const LoopId& id : reference) {
+    EXPECT_EQ(id.first.robot, core::RobotId(0));
+    EXPECT_EQ(id.second.robot, core::RobotId(1));
+  }
+  // A centralized graph of another split is refused, naming the file.
+  try {
+    (void)readReferenceLoops(
+        outliersPath("mixrobust_real2d_split/INTEL/spilt/fullgraph_without_outliers.g2o"),
+        readMultiRobotGraph(outliersPath("mixrobust_real2d_split/CSAIL/spilt")));
+    FAIL() << "a reference of another graph was accepted";
+  } catch (const core::FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("not a reference of this graph"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("INTEL/spilt/fullgraph"), std::string::npos);
+  }
+}
+
+TEST(PcmEvaluation, DamagedAndMissingFilesAreNamed) {
+  // One upstream robot file has a broken line 16.
+  const std::string damaged = outliersPath(
+      "robust_distributed_mapper/pairwise_consistency_maximization/spoiled/simulation/"
+      "example_2robots");
+  try {
+    (void)readMultiRobotGraph(damaged);
+    FAIL() << "a damaged line was accepted";
+  } catch (const core::FileError& e) {
+    EXPECT_NE(std::string(e.what()).find("1.g2o:16"), std::string::npos) << e.what();
+  }
+  const PoseGraph graph = readMultiRobotGraph(damaged, true);
+  EXPECT_EQ(runPcm(graph).loops(), 20U);
+
+  const fs::path empty = fs::temp_directory_path() / "dcl_test_pcm_empty_folder";
+  fs::create_directories(empty);
+  std::ofstream(empty / "notes.txt") << "no graph here\n";
+  EXPECT_THROW((void)readMultiRobotGraph(empty.string()), core::FileError);
+  fs::remove_all(empty);
+  EXPECT_THROW((void)readMultiRobotGraph(outliersPath("no_such_graph")), core::FileError);
+}
+
+}  // namespace
+}  // namespace dcl::backend
