@@ -48,6 +48,7 @@ void validate(const AppConfig& config, const std::string& source) {
     }
   });
   checkField(source, "verification", [&] { registration::validate(config.verification); });
+  checkField(source, "refine", [&] { backend::validate(config.refine); });
   checkField(source, "pcm.threshold", [&] {
     if (!(config.pcm.threshold > 0.0)) throw core::Error("must be positive");
   });

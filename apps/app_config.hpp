@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include <dcl/backend/dgs.hpp>
+#include <dcl/backend/distributed_refine.hpp>
 #include <dcl/backend/pcm.hpp>
 #include <dcl/odometry/external_odometry.hpp>
 #include <dcl/odometry/lidar_odometry.hpp>
@@ -61,6 +63,8 @@ struct AppConfig {
   odometry::LocalMapperConfig mapper;             ///< keyframes, intra-robot loops, local graph
   PlaceSection place;                             ///< place recognition
   registration::VerificationConfig verification;  ///< geometric verification of loop candidates
+  backend::DgsConfig dgs;                         ///< distributed pose-graph optimisation
+  backend::RefineConfig refine;                   ///< distributed refinement after DGS
   backend::PcmConfig pcm;                         ///< inter-robot loop outlier rejection
 
   template <class Visitor>
@@ -72,6 +76,8 @@ struct AppConfig {
     v.section("mapper", mapper, "keyframes, intra-robot loop closure, local pose graph");
     v.section("place", place, "place recognition");
     v.section("verification", verification, "geometric verification of loop candidates");
+    v.section("dgs", dgs, "distributed Gauss-Seidel pose-graph optimisation");
+    v.section("refine", refine, "distributed nonlinear refinement after DGS");
     v.section("pcm", pcm, "PCM outlier rejection of inter-robot loops");
   }
 };

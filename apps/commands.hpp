@@ -43,6 +43,9 @@ void addBenchPlaceCommand(CLI::App& bench, const AppConfig& config);
 /// `pcm`: PCM outlier rejection of a multi-robot graph's inter-robot loops (cmd_pcm.cpp).
 void addPcmCommand(CLI::App& app, const AppConfig& config);
 
+/// `pgo`: pose-graph optimisation, distributed (DGS, refinement) or centralized (cmd_pgo.cpp).
+void addPgoCommand(CLI::App& app, const AppConfig& config);
+
 /// `bench loops`: the inter-robot loop pipeline end to end, graded by ground truth (cmd_loops.cpp).
 void addBenchLoopsCommand(CLI::App& bench, const AppConfig& config);
 

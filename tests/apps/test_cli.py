@@ -668,5 +668,55 @@ class Loops(unittest.TestCase):
         self.assertLess(self.metrics["loops"]["wire_bytes_mean"], 25000)
 
 
+
+class Pgo(unittest.TestCase):
+    """dcl-slam pgo: distributed pose-graph optimisation beside the centralized optimum."""
+
+    GRIDS = os.path.join(DATA, "pose_graphs", "3d")
+    MAPPER = os.path.join(DATA, "pose_graphs", "multi_robot", "distributed_mapper")
+
+    def pgo(self, *args):
+        _, stdout, _ = run("pgo", *args, "--json")
+        return json.loads(stdout)
+
+    def test_dgs_and_refinement_reach_the_centralized_optimum(self):
+        graph = os.path.join(self.GRIDS, "smallGrid3D.g2o")
+        dgs = self.pgo("--g2o", graph, "--robots", "4", "--method", "dgs")
+        refined = self.pgo("--g2o", graph, "--robots", "4", "--method", "dgs+refine")
+        for m in (dgs, refined):
+            for field in ("cost", "centralized_cost", "cost_ratio", "iterations_rotation",
+                          "iterations_pose", "bytes_total", "seconds"):
+                self.assertIn(field, m)
+            self.assertEqual(m["robots"], 4)
+            self.assertAlmostEqual(m["cost_ratio"], m["cost"] / m["centralized_cost"], places=9)
+            self.assertGreater(m["iterations_rotation"], 0)
+            self.assertGreater(m["bytes_total"], 0)
+            self.assertLess(m["bytes_total"], m["bytes_paper_format"])
+        self.assertGreaterEqual(dgs["cost_ratio"], 1.0 - 1e-9)
+        self.assertLessEqual(refined["cost_ratio"], 1.001)
+        self.assertLessEqual(refined["cost"], dgs["cost"])
+
+    def test_per_robot_folders_are_read_as_they_are_and_the_result_written(self):
+        out = os.path.join(tempfile.mkdtemp(), "result.g2o")
+        m = self.pgo("--g2o", os.path.join(self.MAPPER, "example_4robots"), "--method", "dgs",
+                     "--out", out)
+        self.assertEqual(m["robots"], 4)
+        with open(out) as f:
+            vertices = sum(1 for line in f if line.startswith("VERTEX_SE3"))
+        self.assertEqual(vertices, m["nodes"])
+        central = self.pgo("--g2o", out, "--method", "centralized")
+        self.assertAlmostEqual(central["cost_ratio"], 1.0, places=9)
+
+    def test_bad_requests_are_named(self):
+        graph = os.path.join(self.GRIDS, "smallGrid3D.g2o")
+        code, _, err = run("pgo", "--g2o", graph, "--method", "admm", check=False)
+        self.assertEqual(code, 1)
+        self.assertIn("'admm'", err)
+        code, _, err = run("pgo", "--g2o", os.path.join(self.MAPPER, "example_4robots"),
+                           "--robots", "2", check=False)
+        self.assertEqual(code, 1)
+        self.assertIn("4 robots already", err)
+
+
 if __name__ == "__main__":
     unittest.main()

@@ -27,6 +27,11 @@ struct SolverConfig {
   /// Levenberg-Marquardt damping alone pins it).
   bool fix_lowest = true;
   double function_tolerance = 1e-8;  ///< stop when the relative cost change falls below
+  /// Where Levenberg-Marquardt starts: "as_is" (the graph's estimates) or
+  /// "chordal" (chordalInitialise of dgs.hpp, rotations from the chordal
+  /// relaxation, then translations). From odometry-composed estimates LM can end
+  /// in a local minimum (torus3D); from the chordal start it reaches the optimum.
+  std::string initialisation = "as_is";
 
   /// Lists the fields for the YAML loader (io/config.hpp).
   template <class V>
@@ -37,6 +42,7 @@ struct SolverConfig {
     v.field("loss_scale", loss_scale, "scale of the loss, whitened units (sqrt chi-square)");
     v.field("fix_lowest", fix_lowest, "fix the lowest node when the graph fixes none");
     v.field("function_tolerance", function_tolerance, "stop below this relative cost change");
+    v.field("initialisation", initialisation, "where LM starts: as_is or chordal");
   }
 };
 
@@ -44,19 +50,23 @@ struct SolverConfig {
 /// factors that connect two nodes, without the robust loss, so that they
 /// compare with published figures.
 struct SolverSummary {
-  double initial_cost = 0.0;        ///< chi-square before
-  double final_cost = 0.0;          ///< chi-square after
-  int iterations = 0;               ///< iterations run (successful and unsuccessful)
-  bool converged = false;           ///< a tolerance was met (not the iteration cap or a failure)
-  double time = 0.0;                ///< s, wall time of the solve
-  std::size_t factors = 0;          ///< factors in the problem
-  std::size_t skipped_factors = 0;  ///< factors naming a node the graph does not hold
-  std::string message;              ///< Ceres' termination message
+  double initial_cost = 0.0;      ///< chi-square before
+  double initialised_cost = 0.0;  ///< chi-square where Levenberg-Marquardt starts
+  double final_cost = 0.0;        ///< chi-square after
+  int iterations = 0;             ///< iterations run (successful and unsuccessful)
+  bool converged = false;         ///< a tolerance was met (not the iteration cap or a failure)
+  double time = 0.0;              ///< s, wall time of the solve
+  std::size_t factors = 0;        ///< factors in the problem
+  /// Factors naming a node the graph does not hold, or one node twice (a constant cost).
+  std::size_t skipped_factors = 0;
+  std::string message;  ///< Ceres' termination message
 };
 
 /// Optimises every node estimate of `graph` in place. Fixed nodes keep their
 /// estimates; with `config.fix_lowest` and no fixed node, the lowest key is
-/// fixed (the graph itself is not marked). Throws core::Error for an unknown loss name.
+/// fixed (the graph itself is not marked). Throws core::Error for an unknown
+/// loss or initialisation name, or when the chordal initialisation fails (a
+/// graph in pieces).
 SolverSummary solveCentralized(PoseGraph& graph, const SolverConfig& config = {});
 
 }  // namespace dcl::backend

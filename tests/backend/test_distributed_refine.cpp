@@ -1,0 +1,380 @@
+#include <algorithm>
+#include <iterator>
+#include <limits>
+#include <map>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include <dcl/backend/centralized_solver.hpp>
+#include <dcl/backend/dgs.hpp>
+#include <dcl/backend/distributed_refine.hpp>
+#include <dcl/backend/pcm_evaluation.hpp>
+#include <dcl/core/error.hpp>
+#include <dcl/io/g2o.hpp>
+
+namespace dcl::backend {
+namespace {
+
+std::string dataPath(const std::string& relative) {
+  return std::string(DCL_DATA_DIR) + "/pose_graphs/" + relative;
+}
+
+/// A single-robot benchmark of pose_graphs/3d split into `robots` robots.
+PoseGraph splitBenchmark(const std::string& file, int robots) {
+  return splitIntoRobots(fromG2o(io::readG2o(dataPath("3d/" + file))), robots);
+}
+
+/// A distributed-mapper example (robot i's graph in i.g2o).
+PoseGraph mapperExample(int robots) {
+  return readMultiRobotGraph(
+      dataPath("multi_robot/distributed_mapper/example_" + std::to_string(robots) + "robots"));
+}
+
+core::PoseKey key(int robot, int keyframe) {
+  return {core::RobotId(static_cast<std::uint8_t>(robot)),
+          core::KeyframeId(static_cast<std::uint64_t>(keyframe))};
+}
+
+/// The centralized optimum of `graph` (Levenberg-Marquardt from the chordal initialisation).
+PoseGraph centralizedOptimum(PoseGraph graph) {
+  SolverConfig config;
+  config.initialisation = "chordal";
+  const SolverSummary summary = solveCentralized(graph, config);
+  EXPECT_TRUE(summary.converged) << summary.message;
+  return graph;
+}
+
+/// The largest SE(3) distance between the estimates of the same node in `a` and `b`.
+double maxPoseDifference(const PoseGraph& a, const PoseGraph& b) {
+  double worst = 0.0;
+  for (const auto& [k, T] : a.nodes()) {
+    worst = std::max(worst, core::logSE3(T.inverse() * b.estimate(k)).norm());
+  }
+  return worst;
+}
+
+/// Own poses each robot's inter-robot factors touch, per robot and neighbour.
+std::map<core::RobotId, std::map<core::RobotId, std::set<core::PoseKey>>> separatorsOf(
+    const PoseGraph& graph) {
+  std::map<core::RobotId, std::map<core::RobotId, std::set<core::PoseKey>>> separators;
+  for (const Factor& f : graph.factors()) {
+    if (f.from.robot == f.to.robot || !graph.connects(f)) continue;
+    separators[f.from.robot][f.to.robot].insert(f.from);
+    separators[f.to.robot][f.from.robot].insert(f.to);
+  }
+  return separators;
+}
+
+std::string errorOf(const RefineConfig& config) {
+  try {
+    validate(config);
+  } catch (const core::Error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(RefineConfig, RejectsOutOfRangeFieldsByName) {
+  EXPECT_EQ(errorOf({}), "");
+  RefineConfig c;
+  c.max_rounds = -1;
+  EXPECT_NE(errorOf(c).find("max_rounds"), std::string::npos) << errorOf(c);
+  c = {};
+  c.relative_tolerance = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_NE(errorOf(c).find("relative_tolerance"), std::string::npos) << errorOf(c);
+  c = {};
+  c.window = 0;
+  EXPECT_NE(errorOf(c).find("window"), std::string::npos) << errorOf(c);
+  c = {};
+  c.block_iterations = 0;
+  EXPECT_NE(errorOf(c).find("block_iterations"), std::string::npos) << errorOf(c);
+  c = {};
+  c.block_tolerance = -1.0;
+  EXPECT_NE(errorOf(c).find("block_tolerance"), std::string::npos) << errorOf(c);
+  c = {};
+  c.threads = 0;
+  EXPECT_NE(errorOf(c).find("threads"), std::string::npos) << errorOf(c);
+  PoseGraph graph = mapperExample(2);
+  EXPECT_THROW((void)refineDistributed(graph, c), core::Error);
+}
+
+TEST(DistributedRefine, PlainBlockDescentLowersTheCostEveryRound) {
+  PoseGraph graph = splitBenchmark("smallGrid3D.g2o", 4);
+  RefineConfig config;
+  config.accelerate = false;
+  config.max_rounds = 30;
+  const RefineSummary s = refineDistributed(graph, config);
+  ASSERT_EQ(s.rounds, 30);
+  ASSERT_EQ(s.round_costs.size(), 30u);
+  EXPECT_EQ(s.restarts, 0);
+  EXPECT_LT(s.round_costs.front(), s.initial_cost);
+  for (std::size_t i = 1; i < s.round_costs.size(); ++i) {
+    EXPECT_LT(s.round_costs[i], s.round_costs[i - 1]) << "round " << i;
+  }
+  EXPECT_LT(s.final_cost, 0.02 * s.initial_cost);
+  EXPECT_DOUBLE_EQ(graphCost(graph), s.final_cost);
+}
+
+TEST(DistributedRefine, AcceleratedCostNeverIncreasesAndBeatsPlainDescent) {
+  const PoseGraph start = splitBenchmark("smallGrid3D.g2o", 4);
+  RefineConfig config;
+  config.max_rounds = 30;
+  config.relative_tolerance = 0.0;
+  PoseGraph accelerated = start;
+  const RefineSummary s = refineDistributed(accelerated, config);
+  ASSERT_EQ(s.round_costs.size(), static_cast<std::size_t>(s.rounds));
+  EXPECT_LE(s.round_costs.front(), s.initial_cost);
+  for (std::size_t i = 1; i < s.round_costs.size(); ++i) {
+    EXPECT_LE(s.round_costs[i], s.round_costs[i - 1]) << "round " << i;
+  }
+  EXPECT_DOUBLE_EQ(graphCost(accelerated), s.final_cost);
+  PoseGraph plain = start;
+  config.accelerate = false;
+  const RefineSummary p = refineDistributed(plain, config);
+  const double optimum = graphCost(centralizedOptimum(start));
+  // Nesterov momentum: the gap to the optimum after 30 rounds at least 10x smaller.
+  EXPECT_LT(s.final_cost - optimum, 0.1 * (p.final_cost - optimum));
+}
+
+/// A benchmark split into robots, refined from the file's own (odometry-composed) estimates.
+class RefineSmallGrid : public ::testing::TestWithParam<int> {};
+
+TEST_P(RefineSmallGrid, ReachesTheCentralizedOptimumFromTheInitialEstimate) {
+  PoseGraph graph = splitBenchmark("smallGrid3D.g2o", GetParam());
+  const PoseGraph optimum = centralizedOptimum(graph);
+  const RefineSummary s = refineDistributed(graph);
+  EXPECT_TRUE(s.converged);
+  EXPECT_GT(s.initial_cost, 100.0 * s.final_cost);
+  EXPECT_LE(s.final_cost / graphCost(optimum), 1.001);
+  EXPECT_GE(s.final_cost / graphCost(optimum), 1.0 - 1e-9);
+  EXPECT_LT(maxPoseDifference(graph, optimum), 0.05);
+}
+
+INSTANTIATE_TEST_SUITE_P(Robots, RefineSmallGrid, ::testing::Values(2, 4));
+
+TEST(DistributedRefine, DgsThenRefineReachesTheCentralizedOptimum) {
+  for (const int robots : {9}) {
+    PoseGraph graph = splitBenchmark("smallGrid3D.g2o", robots);
+    const double optimum = graphCost(centralizedOptimum(graph));
+    (void)runDgs(graph);
+    const double after_dgs = graphCost(graph);
+    const RefineSummary s = refineDistributed(graph);
+    EXPECT_TRUE(s.converged);
+    EXPECT_DOUBLE_EQ(s.initial_cost, after_dgs);
+    EXPECT_GT(after_dgs / optimum, 1.01);  // DGS alone stops near the optimum, not at it
+    EXPECT_LE(s.final_cost / optimum, 1.001) << robots << " robots";
+  }
+}
+
+TEST(DistributedRefine, DistributedMapperExamplesReachTheCentralizedOptimum) {
+  for (const int robots : {2, 4, 9}) {
+    PoseGraph graph = mapperExample(robots);
+    const PoseGraph optimum = centralizedOptimum(graph);
+    const RefineSummary s = refineDistributed(graph);
+    EXPECT_TRUE(s.converged) << robots;
+    EXPECT_LE(s.final_cost / graphCost(optimum), 1.001) << robots;
+    // The same minimum, up to the slack of the flat directions the tolerance leaves
+    // (8 cm at the far end of the 15 m 9-robot example).
+    EXPECT_LT(maxPoseDifference(graph, optimum), 0.1) << robots;
+  }
+}
+
+TEST(DistributedRefine, CountsEverySeparatorPoseSentEveryRound) {
+  PoseGraph graph = mapperExample(4);
+  const auto separators = separatorsOf(graph);
+  RefineConfig config;
+  config.max_rounds = 7;
+  const RefineSummary s = refineDistributed(graph, config);
+  ASSERT_EQ(s.rounds, 7);
+  std::size_t total = 0;
+  ASSERT_EQ(s.values_sent.size(), 4u);
+  for (const auto& [robot, sent] : s.values_sent) {
+    std::size_t per_round = 0;
+    for (const auto& [neighbour, keys] : separators.at(robot)) per_round += keys.size();
+    EXPECT_GT(per_round, 0u);
+    EXPECT_EQ(sent, 7 * per_round) << core::robotName(robot);
+    total += sent;
+  }
+  EXPECT_EQ(s.separator_values, total);
+}
+
+TEST(DistributedRefine, ASingleRobotEqualsTheCentralizedSolve) {
+  PoseGraph graph = fromG2o(io::readG2o(dataPath("3d/smallGrid3D.g2o")));
+  PoseGraph centralized = graph;
+  (void)solveCentralized(centralized);
+  const RefineSummary s = refineDistributed(graph);
+  EXPECT_TRUE(s.converged);
+  EXPECT_EQ(s.separator_values, 0u);
+  EXPECT_NEAR(s.final_cost / graphCost(centralized), 1.0, 1e-7);
+  EXPECT_LT(maxPoseDifference(graph, centralized), 1e-4);
+}
+
+/// Every node of `graph` re-keyed to robot `robot`.
+PoseGraph asRobot(const PoseGraph& graph, int robot) {
+  PoseGraph out;
+  const auto rekey = [&](const core::PoseKey& k) { return key(robot, k.keyframe.value()); };
+  for (const auto& [k, T] : graph.nodes()) out.addNode(rekey(k), T);
+  for (Factor f : graph.factors()) {
+    f.from = rekey(f.from);
+    f.to = rekey(f.to);
+    out.addFactor(f);
+  }
+  return out;
+}
+
+TEST(DistributedRefine, ARobotWithoutInterRobotFactorsIsSolvedAlone) {
+  // Robots 0 and 1 of a distributed-mapper example, and robot 5: tinyGrid3D, met by no one.
+  PoseGraph graph = mapperExample(2);
+  const Eigen::Isometry3d T_first = graph.nodes().begin()->second;
+  const PoseGraph alone = asRobot(fromG2o(io::readG2o(dataPath("3d/tinyGrid3D.g2o"))), 5);
+  for (const auto& [k, T] : alone.nodes()) graph.addNode(k, T);
+  for (const Factor& f : alone.factors()) graph.addFactor(f);
+  PoseGraph alone_solved = alone;
+  (void)solveCentralized(alone_solved);
+
+  const RefineSummary s = refineDistributed(graph);
+  EXPECT_TRUE(s.converged);
+  EXPECT_EQ(s.values_sent.at(core::RobotId(5)), 0u);
+  EXPECT_GT(s.values_sent.at(core::RobotId(0)), 0u);
+  // The lowest robot's first node holds the gauge, bit for bit.
+  EXPECT_TRUE(graph.nodes().begin()->second.matrix() == T_first.matrix());
+  for (const auto& [k, T] : alone_solved.nodes()) {
+    EXPECT_LT(core::logSE3(T.inverse() * graph.estimate(k)).norm(), 1e-5);
+  }
+}
+
+TEST(DistributedRefine, AFixedNodeHoldsTheGauge) {
+  PoseGraph graph = mapperExample(4);
+  const core::PoseKey held = std::next(graph.nodes().begin(), 30)->first;
+  const Eigen::Isometry3d T_held =
+      graph.estimate(held) * core::expSE3((core::Vector6d() << 1, 2, 0, 0, 0, 0.3).finished());
+  graph.setEstimate(held, T_held);
+  graph.fix(held);
+  const double optimum = graphCost(centralizedOptimum(graph));
+  const RefineSummary s = refineDistributed(graph);
+  EXPECT_TRUE(graph.estimate(held).matrix() == T_held.matrix());
+  EXPECT_LE(s.final_cost / optimum, 1.001);
+}
+
+TEST(DistributedRefine, AFactorFromANodeToItselfIsLeftOutNotFatal) {
+  // Ceres aborts on a residual naming one parameter block twice; such a factor
+  // (a constant cost) may arrive from a peer.
+  PoseGraph graph = mapperExample(2);
+  const core::PoseKey k = std::next(graph.nodes().begin(), 5)->first;
+  graph.addFactor(
+      {k, k, core::makePose2d(0.5, 0.0, 0.1), core::Matrix6d::Identity(), FactorKind::intra_loop});
+  PoseGraph centralized = graph;
+  const SolverSummary c = solveCentralized(centralized);
+  EXPECT_EQ(c.skipped_factors, 1u);
+  const RefineSummary s = refineDistributed(graph);
+  EXPECT_TRUE(s.converged);
+  EXPECT_LE(s.final_cost / c.final_cost, 1.001);
+}
+
+/// Agents of `graph`, each given its local graph with the neighbours' separators.
+std::map<core::RobotId, RefineAgent> makeAgents(const PoseGraph& graph,
+                                                const RefineConfig& config) {
+  std::map<core::RobotId, RefineAgent> agents;
+  for (auto [robot, local] : partitionByRobot(graph)) {
+    for (const Factor& f : local.factors()) {
+      for (const core::PoseKey& k : {f.from, f.to}) {
+        if (!local.hasNode(k) && graph.hasNode(k)) local.addNode(k, graph.estimate(k));
+      }
+    }
+    if (robot == graph.nodes().begin()->first.robot) local.fix(graph.nodes().begin()->first);
+    agents.emplace(robot, RefineAgent(robot, local, config));
+  }
+  return agents;
+}
+
+TEST(RefineAgent, AgentsPassingValuesByHandRunTheSameRoundsAsTheDriver) {
+  const PoseGraph start = mapperExample(4);
+  RefineConfig config;
+  config.accelerate = false;
+  config.relative_tolerance = 0.0;
+  config.max_rounds = 5;
+  auto agents = makeAgents(start, config);
+  for (int round = 0; round < config.max_rounds; ++round) {
+    for (auto& [robot, agent] : agents) agent.beginRound();
+    for (auto& [robot, agent] : agents) {
+      const RefineStep step = agent.step();
+      EXPECT_LE(step.cost_after, step.cost_before);
+      EXPECT_GT(step.iterations, 0);
+      EXPECT_EQ(step.outgoing.size(), agent.neighbours().size());
+      for (const auto& [neighbour, poses] : step.outgoing) agents.at(neighbour).receive(poses);
+    }
+    for (auto& [robot, agent] : agents) agent.endRound(true);
+  }
+  PoseGraph driven = start;
+  (void)refineDistributed(driven, config);
+  for (const auto& [robot, agent] : agents) {
+    for (const auto& [k, T] : agent.estimates()) {
+      EXPECT_TRUE(T.isApprox(driven.estimate(k), 1e-12)) << core::robotName(robot);
+    }
+  }
+}
+
+TEST(RefineAgent, AFactorToAnUnknownNeighbourPoseWaitsForItsValue) {
+  const PoseGraph graph = mapperExample(2);
+  const core::RobotId b(1);
+  PoseGraph local = partitionByRobot(graph).at(b);
+  for (const auto& [k, T] : local.nodes()) ASSERT_EQ(k.robot, b);
+  RefineAgent agent(b, local, {});
+  ASSERT_FALSE(agent.neighbourPoses().empty());
+  EXPECT_EQ(agent.neighbours(), std::set<core::RobotId>{core::RobotId(0)});
+
+  // Without a's values the block is b's own factors only.
+  PoseGraph own_only;
+  for (const auto& [k, T] : local.nodes()) own_only.addNode(k, T);
+  for (const Factor& f : local.factors()) own_only.addFactor(f);  // inter factors: ends missing
+  agent.beginRound();
+  const RefineStep first = agent.step();
+  EXPECT_NEAR(first.cost_before, graphCost(own_only), 1e-9 * graphCost(own_only));
+  agent.endRound(true);
+
+  // With them, the inter-robot factors count too.
+  std::map<core::PoseKey, Eigen::Isometry3d> values;
+  for (const core::PoseKey& k : agent.neighbourPoses()) values.emplace(k, graph.estimate(k));
+  agent.beginRound();
+  agent.receive(values);
+  for (const auto& [k, T] : agent.estimates()) own_only.setEstimate(k, T);
+  PoseGraph with_neighbours = own_only;
+  for (const auto& [k, T] : values) with_neighbours.addNode(k, T);
+  const RefineStep second = agent.step();
+  EXPECT_GT(graphCost(with_neighbours), graphCost(own_only) + 1e-3);
+  EXPECT_NEAR(second.cost_before, graphCost(with_neighbours), 1e-9 * graphCost(with_neighbours));
+  EXPECT_LE(second.cost_after, second.cost_before);
+}
+
+TEST(CentralizedInitialisation, ChordalStartReachesTheSameOptimumFromCloser) {
+  const PoseGraph start = fromG2o(io::readG2o(dataPath("3d/smallGrid3D.g2o")));
+  PoseGraph as_is = start;
+  PoseGraph chordal = start;
+  const SolverSummary a = solveCentralized(as_is);
+  SolverConfig config;
+  config.initialisation = "chordal";
+  const SolverSummary c = solveCentralized(chordal, config);
+  EXPECT_DOUBLE_EQ(a.initialised_cost, a.initial_cost);
+  EXPECT_DOUBLE_EQ(c.initial_cost, a.initial_cost);
+  EXPECT_LT(c.initialised_cost, 0.1 * c.initial_cost);
+  EXPECT_LT(c.iterations, a.iterations);
+  EXPECT_NEAR(c.final_cost / a.final_cost, 1.0, 1e-6);
+  EXPECT_TRUE(chordal.nodes().begin()->second.matrix() == start.nodes().begin()->second.matrix());
+}
+
+TEST(CentralizedInitialisation, UnknownNameThrowsAndLeavesTheGraphAlone) {
+  PoseGraph graph = mapperExample(2);
+  const PoseGraph before = graph;
+  SolverConfig config;
+  config.initialisation = "spanning_tree";
+  EXPECT_THROW((void)solveCentralized(graph, config), core::Error);
+  for (const auto& [k, T] : before.nodes()) {
+    EXPECT_TRUE(graph.estimate(k).matrix() == T.matrix());
+  }
+}
+
+}  // namespace
+}  // namespace dcl::backend
