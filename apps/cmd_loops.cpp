@@ -12,6 +12,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -190,21 +191,20 @@ Json runPcm(const std::vector<Robot>& robots, std::vector<Candidate>& candidates
       backend::PairwiseConsistency pcm(robots[a].id, robots[b].id, config);
       for (const std::size_t r : {a, b})
         for (const backend::Factor& f : robots[r].graph.factors()) pcm.addRobotFactor(f);
-      std::size_t loops = 0;
-      for (const Candidate& c : candidates) {
-        const bool pair =
-            (c.querier == a && c.verifier == b) || (c.querier == b && c.verifier == a);
-        if (pair && c.verification.accepted && pcm.addLoop(loopFactor(robots, c))) ++loops;
-      }
-      const backend::PcmDecision& decision = pcm.decide();
+      // The verified loops between a and b, from either robot's queries.
+      std::vector<Candidate*> verified;
       for (Candidate& c : candidates) {
         const bool pair =
-            (c.querier == a && c.verifier == b) || (c.querier == b && c.verifier == a);
-        if (!pair || !c.verification.accepted) continue;
-        const backend::LoopId id = backend::loopId(loopFactor(robots, c));
-        c.kept = std::any_of(decision.accepted.begin(), decision.accepted.end(),
-                             [&](const backend::Factor& f) { return backend::loopId(f) == id; });
+            std::min(c.querier, c.verifier) == a && std::max(c.querier, c.verifier) == b;
+        if (pair && c.verification.accepted) verified.push_back(&c);
       }
+      std::size_t loops = 0;
+      for (const Candidate* c : verified) loops += pcm.addLoop(loopFactor(robots, *c)) ? 1 : 0;
+      const backend::PcmDecision& decision = pcm.decide();
+      std::set<backend::LoopId> kept;
+      for (const backend::Factor& f : decision.accepted) kept.insert(backend::loopId(f));
+      for (Candidate* c : verified)
+        c->kept = kept.contains(backend::loopId(loopFactor(robots, *c)));
       pairs.push_back({{"robots", robots[a].name + "-" + robots[b].name},
                        {"loops", loops},
                        {"kept", decision.accepted.size()},
