@@ -5,17 +5,18 @@
 #include <utility>
 #include <vector>
 
-#include <ceres/ceres.h>
-
 #include <dcl/backend/distributed_refine.hpp>
 #include <dcl/core/error.hpp>
 
-#include "se3_cost.hpp"
+#include "pose_block_solver.hpp"
 
 namespace dcl::backend {
 namespace {
 
 using PoseMap = std::map<core::PoseKey, Eigen::Isometry3d>;
+
+/// Levenberg-Marquardt iterations at most for a robot that solves its block alone.
+constexpr int kAloneIterations = 100;
 
 void require(bool ok, const char* field, const std::string& what) {
   if (!ok) throw core::Error(std::string("refine config: ") + field + " " + what);
@@ -60,17 +61,17 @@ void validate(const RefineConfig& config) {
   require(config.window >= 1, "window", "must be at least 1, got " + std::to_string(config.window));
   require(config.block_iterations >= 1, "block_iterations",
           "must be at least 1, got " + std::to_string(config.block_iterations));
+  require(config.factorisation_reuse >= 0, "factorisation_reuse",
+          "must be at least 0, got " + std::to_string(config.factorisation_reuse));
   require(nonNegative(config.block_tolerance), "block_tolerance",
           "must be finite and at least 0, got " + std::to_string(config.block_tolerance));
-  require(config.threads >= 1, "threads",
-          "must be at least 1, got " + std::to_string(config.threads));
 }
 
 struct RefineAgent::Impl {
   core::RobotId robot;
   RefineConfig config;
-  detail::Se3Problem problem;   // own poses free, neighbours' separators constant
-  std::vector<Factor> pending;  // inter-robot factors whose neighbour pose has no value yet
+  detail::PoseBlockSolver problem;  // own poses free, neighbours' separators constant
+  std::vector<Factor> pending;      // inter-robot factors whose neighbour pose has no value yet
   std::map<core::RobotId, std::set<core::PoseKey>> separators;
   std::set<core::PoseKey> neighbour_poses;
   std::set<core::PoseKey> held;  // own poses that hold the gauge
@@ -168,14 +169,18 @@ struct RefineAgent::Impl {
 
   void solve(RefineStep& step) {
     if (problem.factors() == 0) return;
-    ceres::Solver::Summary summary;
-    ceres::Solve(
-        detail::levenbergMarquardt(config.block_iterations, config.threads, config.block_tolerance),
-        &problem.problem(), &summary);
-    // Ceres' cost is half the sum of squared whitened residuals: half the chi-square.
-    step.cost_before = 2.0 * summary.initial_cost;
-    step.cost_after = 2.0 * summary.final_cost;
-    step.iterations = summary.num_successful_steps + summary.num_unsuccessful_steps;
+    detail::BlockSolveOptions options;
+    // A robot no inter-robot factor joins has nothing to wait for: its block
+    // is the whole problem of its group, solved to convergence at once.
+    options.max_iterations = neighbour_poses.empty()
+                                 ? std::max(config.block_iterations, kAloneIterations)
+                                 : config.block_iterations;
+    options.function_tolerance = config.block_tolerance;
+    options.factorisation_reuse = config.factorisation_reuse;
+    const detail::BlockSolveSummary summary = problem.solve(options);
+    step.cost_before = summary.initial_cost;
+    step.cost_after = summary.final_cost;
+    step.iterations = summary.iterations;
     for (auto& [key, pose] : estimates) {
       if (problem.isVariable(key)) pose = problem.pose(key);
     }

@@ -143,21 +143,65 @@ inline core::Matrix6d rightJacobianInverseSE3(const core::Vector6d& xi) {
   return J;
 }
 
-/// RelativePoseError with analytic Jacobians: autodiff through the SE(3) log
-/// dominates the solvers' time. With E = Z^-1 T_from^-1 T_to and r0 = log(E), a
-/// right perturbation exp(d) of T_to gives dr0 = J_r^-1(r0) d, and one of T_from
-/// dr0 = -J_r^-1(r0) Ad(T_to^-1 T_from) d. A translation step dt is the right
-/// perturbation [R^T dt; 0]; a quaternion step delta of EigenQuaternionManifold,
-/// q' = [cos|delta|, sin|delta| delta/|delta|] q, is the rotation exp(2 delta) R,
-/// i.e. the right perturbation [0; 2 R^T delta]. Ceres multiplies the ambient
-/// (4-column) Jacobian by the manifold's PlusJacobian P, whose columns are
-/// orthonormal, so J_tangent P^T is an ambient Jacobian that reproduces J_tangent.
+/// A factor's whitened residual and its Jacobians with respect to right
+/// perturbations [rho; phi] of its two poses, T exp(d). With E = Z^-1 T_from^-1
+/// T_to and r0 = log(E), perturbing T_to gives dr0 = J_r^-1(r0) d, and
+/// perturbing T_from gives dr0 = -J_r^-1(r0) Ad(T_to^-1 T_from) d. To first
+/// order, exp([rho; phi]) moves the translation by R rho and the rotation to
+/// R exp(phi).
+struct RelativePoseMeasurement {
+  Eigen::Quaterniond q_to_from;  ///< the measured rotation, inverted
+  Eigen::Vector3d t_from_to;     ///< the measured translation
+  core::Matrix6d sqrt_information;
+
+  RelativePoseMeasurement(const Eigen::Isometry3d& T_from_to, const core::Matrix6d& sqrt_info)
+      : q_to_from(Eigen::Quaterniond(T_from_to.rotation()).conjugate()),
+        t_from_to(T_from_to.translation()),
+        sqrt_information(sqrt_info) {}
+
+  /// The whitened residual S log(Z^-1 T_from^-1 T_to); its unwhitened log in `xi` when asked.
+  [[nodiscard]] core::Vector6d residual(const Eigen::Quaterniond& q_from,
+                                        const Eigen::Vector3d& t_from,
+                                        const Eigen::Quaterniond& q_to, const Eigen::Vector3d& t_to,
+                                        core::Vector6d* xi_out = nullptr) const {
+    const Eigen::Quaterniond q_error = q_to_from * (q_from.conjugate() * q_to);
+    const Eigen::Vector3d t_error = q_to_from * (q_from.conjugate() * (t_to - t_from) - t_from_to);
+    core::Vector6d xi;
+    xi.tail<3>() = logQuaternion(q_error);
+    xi.head<3>() = applyLeftJacobianInverse<double>(xi.tail<3>(), t_error);
+    if (xi_out != nullptr) *xi_out = xi;
+    return sqrt_information * xi;
+  }
+
+  /// The residual, and the Jacobians for right perturbations of each pose.
+  core::Vector6d linearise(const Eigen::Quaterniond& q_from, const Eigen::Vector3d& t_from,
+                           const Eigen::Quaterniond& q_to, const Eigen::Vector3d& t_to,
+                           core::Matrix6d& J_from, core::Matrix6d& J_to) const {
+    core::Vector6d xi;
+    const core::Vector6d r = residual(q_from, t_from, q_to, t_to, &xi);
+    J_to = sqrt_information * rightJacobianInverseSE3(xi);
+    // -J_to Ad(T_to^-1 T_from), Ad(R, t) = [R, t^ R; 0, R].
+    const Eigen::Matrix3d R_to_transpose = q_to.toRotationMatrix().transpose();
+    const Eigen::Matrix3d R = R_to_transpose * q_from.toRotationMatrix();
+    const Eigen::Vector3d t = R_to_transpose * (t_from - t_to);
+    J_from.leftCols<3>() = -J_to.leftCols<3>() * R;
+    J_from.rightCols<3>() = -J_to.leftCols<3>() * (core::hat(t) * R) - J_to.rightCols<3>() * R;
+    return r;
+  }
+};
+
+/// RelativePoseError with analytic Jacobians (RelativePoseMeasurement):
+/// autodiff through the SE(3) log dominates the solvers' time. A translation
+/// step dt is the right perturbation [R^T dt; 0]; a quaternion step delta of
+/// EigenQuaternionManifold, q' = [cos|delta|, sin|delta| delta/|delta|] q, is
+/// the rotation exp(2 delta) R, i.e. the right perturbation [0; 2 R^T delta].
+/// Ceres multiplies the ambient (4-column) Jacobian by the manifold's
+/// PlusJacobian P, whose columns are orthonormal, so J_tangent P^T is an
+/// ambient Jacobian that reproduces J_tangent.
 class RelativePoseCost final : public ceres::SizedCostFunction<6, 4, 3, 4, 3> {
  public:
   RelativePoseCost(const Eigen::Isometry3d& T_from_to, const core::Matrix6d& sqrt_information)
-      : q_to_from_(Eigen::Quaterniond(T_from_to.rotation()).conjugate()),
-        t_from_to_(T_from_to.translation()),
-        sqrt_information_(sqrt_information) {}
+      : measurement_(T_from_to, sqrt_information) {}
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
@@ -165,39 +209,35 @@ class RelativePoseCost final : public ceres::SizedCostFunction<6, 4, 3, 4, 3> {
     const Eigen::Map<const Eigen::Vector3d> t_from(parameters[1]);
     const Eigen::Map<const Eigen::Quaterniond> q_to(parameters[2]);
     const Eigen::Map<const Eigen::Vector3d> t_to(parameters[3]);
-    const Eigen::Quaterniond q_error = q_to_from_ * (q_from.conjugate() * q_to);
-    const Eigen::Vector3d t_error =
-        q_to_from_ * (q_from.conjugate() * (t_to - t_from) - t_from_to_);
-    core::Vector6d xi;
-    xi.tail<3>() = logQuaternion(q_error);
-    xi.head<3>() = applyLeftJacobianInverse<double>(xi.tail<3>(), t_error);
-    Eigen::Map<core::Vector6d>{residuals} = sqrt_information_ * xi;
-    if (jacobians == nullptr) return true;
+    Eigen::Map<core::Vector6d> residual(residuals);
+    if (jacobians == nullptr) {
+      residual = measurement_.residual(q_from, t_from, q_to, t_to);
+      return true;
+    }
+    core::Matrix6d J_from;
+    core::Matrix6d J_to;
+    residual = measurement_.linearise(q_from, t_from, q_to, t_to, J_from, J_to);
 
     using Jacobian3 = Eigen::Matrix<double, 6, 3, Eigen::RowMajor>;
     using Jacobian4 = Eigen::Matrix<double, 6, 4, Eigen::RowMajor>;
-    const core::Matrix6d J_to = sqrt_information_ * rightJacobianInverseSE3(xi);
-    const Eigen::Matrix3d R_from = q_from.toRotationMatrix();
-    const Eigen::Matrix3d R_to = q_to.toRotationMatrix();
     if (jacobians[0] != nullptr || jacobians[1] != nullptr) {
-      // -J_to Ad(T_to^-1 T_from), Ad(R, t) = [R, t^ R; 0, R].
-      const Eigen::Matrix3d R = R_to.transpose() * R_from;
-      const Eigen::Vector3d t = R_to.transpose() * (t_from - t_to);
-      const Eigen::Matrix<double, 6, 3> J_rho = -J_to.leftCols<3>() * R;
+      const Eigen::Matrix3d R_from = q_from.toRotationMatrix();
       if (jacobians[1] != nullptr) {
-        Eigen::Map<Jacobian3>{jacobians[1]} = J_rho * R_from.transpose();
+        Eigen::Map<Jacobian3>{jacobians[1]} = J_from.leftCols<3>() * R_from.transpose();
       }
       if (jacobians[0] != nullptr) {
-        const Eigen::Matrix<double, 6, 3> J_phi =
-            -J_to.leftCols<3>() * (core::hat(t) * R) - J_to.rightCols<3>() * R;
-        Eigen::Map<Jacobian4>{jacobians[0]} = J_phi * ambientFromTangent(q_from, R_from);
+        Eigen::Map<Jacobian4>{jacobians[0]} =
+            J_from.rightCols<3>() * ambientFromTangent(q_from, R_from);
       }
     }
-    if (jacobians[3] != nullptr) {
-      Eigen::Map<Jacobian3>{jacobians[3]} = J_to.leftCols<3>() * R_to.transpose();
-    }
-    if (jacobians[2] != nullptr) {
-      Eigen::Map<Jacobian4>{jacobians[2]} = J_to.rightCols<3>() * ambientFromTangent(q_to, R_to);
+    if (jacobians[2] != nullptr || jacobians[3] != nullptr) {
+      const Eigen::Matrix3d R_to = q_to.toRotationMatrix();
+      if (jacobians[3] != nullptr) {
+        Eigen::Map<Jacobian3>{jacobians[3]} = J_to.leftCols<3>() * R_to.transpose();
+      }
+      if (jacobians[2] != nullptr) {
+        Eigen::Map<Jacobian4>{jacobians[2]} = J_to.rightCols<3>() * ambientFromTangent(q_to, R_to);
+      }
     }
     return true;
   }
@@ -216,9 +256,7 @@ class RelativePoseCost final : public ceres::SizedCostFunction<6, 4, 3, 4, 3> {
     return 2.0 * R.transpose() * plus_transpose;
   }
 
-  Eigen::Quaterniond q_to_from_;
-  Eigen::Vector3d t_from_to_;
-  core::Matrix6d sqrt_information_;
+  RelativePoseMeasurement measurement_;
 };
 
 /// S with S^T S = Omega, from the eigen-decomposition (negative eigenvalues of a

@@ -95,8 +95,8 @@ TEST(RefineConfig, RejectsOutOfRangeFieldsByName) {
   c.block_tolerance = -1.0;
   EXPECT_NE(errorOf(c).find("block_tolerance"), std::string::npos) << errorOf(c);
   c = {};
-  c.threads = 0;
-  EXPECT_NE(errorOf(c).find("threads"), std::string::npos) << errorOf(c);
+  c.factorisation_reuse = -1;
+  EXPECT_NE(errorOf(c).find("factorisation_reuse"), std::string::npos) << errorOf(c);
   PoseGraph graph = mapperExample(2);
   EXPECT_THROW((void)refineDistributed(graph, c), core::Error);
 }
@@ -131,12 +131,19 @@ TEST(DistributedRefine, AcceleratedCostNeverIncreasesAndBeatsPlainDescent) {
     EXPECT_LE(s.round_costs[i], s.round_costs[i - 1]) << "round " << i;
   }
   EXPECT_DOUBLE_EQ(graphCost(accelerated), s.final_cost);
-  PoseGraph plain = start;
-  config.accelerate = false;
-  const RefineSummary p = refineDistributed(plain, config);
   const double optimum = graphCost(centralizedOptimum(start));
-  // Nesterov momentum: the gap to the optimum after 30 rounds at least 10x smaller.
-  EXPECT_LT(s.final_cost - optimum, 0.1 * (p.final_cost - optimum));
+  const auto gap = [&](bool accelerate, int reuse) {
+    PoseGraph graph = start;
+    RefineConfig c = config;
+    c.accelerate = accelerate;
+    c.factorisation_reuse = reuse;
+    return refineDistributed(graph, c).final_cost - optimum;
+  };
+  // Nesterov momentum: with exact block steps, the gap to the optimum after
+  // 30 rounds at least 10x smaller; with factorisations reused across rounds
+  // (the default, whose steps are less exact) at least 4x.
+  EXPECT_LT(gap(true, 0), 0.1 * gap(false, 0));
+  EXPECT_LT(s.final_cost - optimum, 0.25 * gap(false, config.factorisation_reuse));
 }
 
 /// A benchmark split into robots, refined from the file's own (odometry-composed) estimates.
@@ -233,7 +240,9 @@ TEST(DistributedRefine, ARobotWithoutInterRobotFactorsIsSolvedAlone) {
   for (const auto& [k, T] : alone.nodes()) graph.addNode(k, T);
   for (const Factor& f : alone.factors()) graph.addFactor(f);
   PoseGraph alone_solved = alone;
-  (void)solveCentralized(alone_solved);
+  SolverConfig tight;
+  tight.function_tolerance = 1e-14;
+  (void)solveCentralized(alone_solved, tight);
 
   const RefineSummary s = refineDistributed(graph);
   EXPECT_TRUE(s.converged);
