@@ -1,6 +1,7 @@
 # The two commands of the README, and a few conveniences.
 #   make demo   install what is missing, build, run the main job
 #   make test   install what is missing, build, run the whole test suite
+#               (ctest, then every decoder's libFuzzer target for 20 s)
 
 BUILD_DIR ?= build
 JOBS ?= $(shell nproc)
@@ -22,6 +23,7 @@ demo: build
 
 test: build
 	ctest --test-dir $(BUILD_DIR) --output-on-failure -j $(JOBS)
+	scripts/fuzz --seconds 20
 
 bench: setup
 	cmake -S . -B $(BUILD_DIR)-bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DDCL_BUILD_TESTS=OFF -DDCL_BUILD_BENCHMARKS=ON
@@ -32,4 +34,4 @@ format:
 	git ls-files '*.cpp' '*.hpp' | xargs clang-format -i
 
 clean:
-	rm -rf $(BUILD_DIR) $(BUILD_DIR)-bench
+	rm -rf $(BUILD_DIR) $(BUILD_DIR)-bench build-fuzz

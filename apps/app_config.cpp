@@ -49,6 +49,9 @@ void validate(const AppConfig& config, const std::string& source) {
   });
   checkField(source, "verification", [&] { registration::validate(config.verification); });
   checkField(source, "refine", [&] { backend::validate(config.refine); });
+  checkField(source, "messenger", [&] { comm::validate(config.messenger); });
+  checkField(source, "radio", [&] { comm::validate(config.radio); });
+  checkField(source, "dds", [&] { comm::validate(config.dds); });
   checkField(source, "pcm.threshold", [&] {
     if (!(config.pcm.threshold > 0.0)) throw core::Error("must be positive");
   });

@@ -10,6 +10,9 @@
 #include <dcl/backend/dgs.hpp>
 #include <dcl/backend/distributed_refine.hpp>
 #include <dcl/backend/pcm.hpp>
+#include <dcl/comm/dds_transport.hpp>
+#include <dcl/comm/messenger.hpp>
+#include <dcl/comm/sim_radio.hpp>
 #include <dcl/odometry/external_odometry.hpp>
 #include <dcl/odometry/lidar_odometry.hpp>
 #include <dcl/odometry/local_mapper.hpp>
@@ -66,6 +69,9 @@ struct AppConfig {
   backend::DgsConfig dgs;                         ///< distributed pose-graph optimisation
   backend::RefineConfig refine;                   ///< distributed refinement after DGS
   backend::PcmConfig pcm;                         ///< inter-robot loop outlier rejection
+  comm::MessengerConfig messenger;                ///< neighbours, heartbeats, retransmission
+  comm::SimRadioConfig radio;                     ///< the simulated radio of swarm runs
+  comm::DdsConfig dds;                            ///< Cyclone DDS between robot processes
 
   template <class Visitor>
   void visit(Visitor& v) {
@@ -79,6 +85,9 @@ struct AppConfig {
     v.section("dgs", dgs, "distributed Gauss-Seidel pose-graph optimisation");
     v.section("refine", refine, "distributed nonlinear refinement after DGS");
     v.section("pcm", pcm, "PCM outlier rejection of inter-robot loops");
+    v.section("messenger", messenger, "neighbours, heartbeats and retransmission between robots");
+    v.section("radio", radio, "the simulated radio of swarm runs in one process");
+    v.section("dds", dds, "Cyclone DDS between robot processes");
   }
 };
 

@@ -14,6 +14,7 @@
 #include <dcl/backend/distributed_refine.hpp>
 #include <dcl/backend/pcm_evaluation.hpp>
 #include <dcl/backend/pose_graph.hpp>
+#include <dcl/comm/messages.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/io/g2o.hpp>
 
@@ -35,16 +36,36 @@ struct PgoOptions {
   bool json = false;
 };
 
-/// Bytes on the wire per separator value. Ours: the key (robot byte and a
-/// varint keyframe, 4 B), the rotation as the three smallest quaternion
-/// components in int16 (6 B), the translation in float32 (12 B). The paper's
-/// code: a 3x3 float rotation (36 B) or a 6-float pose vector (24 B), and an
-/// 8-byte GTSAM key each.
+/// Bytes on the wire per separator value. Ours: what one more estimate adds
+/// to a comm::RotationEstimates or comm::PoseEstimates message (its keyframe
+/// id as a varint and its fixed-point record: the relaxed rotation's nine
+/// entries in int16, or a pose's quaternion in three int16 and translation in
+/// float32), measured by encoding. The paper's code: a 3x3 float rotation
+/// (36 B) or a 6-float pose vector (24 B), and an 8-byte GTSAM key each.
 struct ValueBytes {
   std::size_t rotation = 0;
   std::size_t pose = 0;
 };
-constexpr ValueBytes kOurBytes{4 + 6, 4 + 6 + 12};
+
+ValueBytes ourBytes() {
+  comm::Message rotations{{}, comm::RotationEstimates{}};
+  comm::Message poses{{}, comm::PoseEstimates{}};
+  rotations.header.sender = poses.header.sender = core::RobotId(0);
+  const auto grow = [](comm::Message& m) {
+    const std::size_t before = comm::encode(m).size();
+    const core::KeyframeId id(1000);  // a typical keyframe id: two varint bytes
+    if (auto* r = std::get_if<comm::RotationEstimates>(&m.body)) {
+      r->rotations.emplace_back(id, Eigen::Matrix3d::Identity());
+    } else {
+      std::get<comm::PoseEstimates>(m.body).poses.emplace_back(id, Eigen::Isometry3d::Identity());
+    }
+    return comm::encode(m).size() - before;
+  };
+  grow(rotations);
+  grow(poses);  // the first adds the fields' tags; the second is what each adds
+  return {grow(rotations), grow(poses)};
+}
+
 constexpr ValueBytes kPaperBytes{8 + 36, 8 + 24};
 
 double seconds(Clock::time_point since) {
@@ -107,8 +128,9 @@ Json runPgo(const PgoOptions& o, const backend::DgsConfig& dgs_config,
     const auto start = Clock::now();
     const backend::DgsSummary dgs = backend::runDgs(graph, dgs_config);
     m["cost_dgs"] = backend::graphCost(graph);
-    std::size_t bytes = dgs.separator_values_rotation * kOurBytes.rotation +
-                        dgs.separator_values_pose * kOurBytes.pose;
+    const ValueBytes ours = ourBytes();
+    std::size_t bytes =
+        dgs.separator_values_rotation * ours.rotation + dgs.separator_values_pose * ours.pose;
     std::size_t paper = dgs.separator_values_rotation * kPaperBytes.rotation +
                         dgs.separator_values_pose * kPaperBytes.pose;
     int rounds = 0;
@@ -118,7 +140,7 @@ Json runPgo(const PgoOptions& o, const backend::DgsConfig& dgs_config,
       const backend::RefineSummary refine = backend::refineDistributed(graph, refine_config);
       rounds = refine.rounds;
       m["seconds_refine"] = refine.seconds;
-      bytes += refine.separator_values * kOurBytes.pose;
+      bytes += refine.separator_values * ours.pose;
       paper += refine.separator_values * kPaperBytes.pose;
     }
     const double cost = backend::graphCost(graph);

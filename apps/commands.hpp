@@ -46,6 +46,10 @@ void addPcmCommand(CLI::App& app, const AppConfig& config);
 /// `pgo`: pose-graph optimisation, distributed (DGS, refinement) or centralized (cmd_pgo.cpp).
 void addPgoCommand(CLI::App& app, const AppConfig& config);
 
+/// `ping`: joins a swarm over Cyclone DDS as one robot and checks who hears
+/// whom, and that test broadcasts arrive exactly once (cmd_ping.cpp).
+void addPingCommand(CLI::App& app, const AppConfig& config);
+
 /// `bench loops`: the inter-robot loop pipeline end to end, graded by ground truth (cmd_loops.cpp).
 void addBenchLoopsCommand(CLI::App& bench, const AppConfig& config);
 

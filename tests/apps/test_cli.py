@@ -720,3 +720,151 @@ class Pgo(unittest.TestCase):
 
 if __name__ == "__main__":
     unittest.main()
+
+
+import re  # noqa: E402  (used by Ping alone)
+import signal  # noqa: E402
+import time  # noqa: E402
+
+
+class Ping(unittest.TestCase):
+    """dcl-slam ping: robot processes over Cyclone DDS on loopback hear each other and get
+    every test broadcast exactly once, also when met late and across a restart.
+
+    Each test has its own DDS domain (150..160) and a swarm name with this process id, so
+    parallel test runs stay apart. Timing margins are seconds, never fractions of one."""
+
+    MESSAGES = 5
+    PERIOD = 0.2
+    EPOCH_2024 = 1704067200  # 2024-01-01 00:00 UTC, the default incarnation's origin
+
+    def start(self, robot, domain, duration, *extra):
+        args = [DCL_SLAM, "ping", "--robot", str(robot), "--messages", str(self.MESSAGES),
+                "--period", str(self.PERIOD), "--duration", str(duration), "--domain",
+                str(domain), "--swarm", f"cli-test-{os.getpid()}", "--interface", "lo",
+                "--json", *extra]
+        proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.addCleanup(self.stop, proc)
+        return proc
+
+    @staticmethod
+    def stop(proc):
+        if proc.poll() is None:
+            proc.kill()
+            proc.communicate()
+
+    def finish(self, proc):
+        out, err = proc.communicate(timeout=120)
+        self.assertEqual(proc.returncode, 0, err)
+        return json.loads(out)
+
+    def assertAllOnce(self, report, peer, incarnation=None):
+        """Every number 0..K-1 of the peer's life (its latest one by default), once."""
+        lives = report["lives"][str(peer)]
+        life = lives[-1] if incarnation is None else \
+            next(l for l in lives if l["incarnation"] == incarnation)
+        where = f"robot {report['robot']} from robot {peer}"
+        self.assertEqual(life["received"], list(range(self.MESSAGES)), where)
+        self.assertEqual(life["count"], self.MESSAGES, where)
+        self.assertEqual(life["duplicates"], 0, where)
+        self.assertIsNotNone(life["complete_at"], where)
+
+    def test_three_robots_exchange(self):
+        before = time.time()
+        procs = [self.start(robot, 150, 5) for robot in range(3)]
+        reports = [self.finish(p) for p in procs]
+        after = time.time()
+        for robot, r in enumerate(reports):
+            others = [o for o in range(3) if o != robot]
+            self.assertEqual(r["robot"], robot)
+            self.assertEqual(r["neighbours"], others)
+            self.assertEqual(r["present"], others)
+            self.assertEqual(sorted(r["received"]), [str(o) for o in others])
+            for peer in others:
+                self.assertEqual(len(r["lives"][str(peer)]), 1)
+                self.assertAllOnce(r, peer)
+            self.assertEqual(r["duplicates"], 0)
+            self.assertEqual(r["sent"]["descriptor"], self.MESSAGES)
+            self.assertEqual(r["delivered"]["descriptor"], 2 * self.MESSAGES)
+            self.assertEqual(r["dropped"]["stale_incarnation"], 0)
+            self.assertCountEqual([(e["type"], e["robot"]) for e in r["events"]],
+                                  [("appeared", peer) for peer in others])
+            self.assertFalse(r["interrupted"])
+            # The default incarnation: tenths of a second since 2024-01-01 UTC.
+            self.assertGreaterEqual(r["incarnation"], int((before - self.EPOCH_2024) * 10))
+            self.assertLessEqual(r["incarnation"], int((after - self.EPOCH_2024) * 10) + 1)
+
+    def test_late_joiner_gets_everything(self):
+        early = [self.start(robot, 151, 10) for robot in (0, 1)]
+        time.sleep(3.5)  # robots 0 and 1 send for 0.8 s after they start
+        late = self.start(2, 151, 5)
+        r2 = self.finish(late)
+        r0, r1 = (self.finish(p) for p in early)
+        for r in (r0, r1):
+            last_sent = r["started_at"] + (self.MESSAGES - 1) * self.PERIOD
+            self.assertGreater(r2["started_at"], last_sent + 1.0, "robot 2 did not join late")
+            self.assertAllOnce(r2, r["robot"])
+            self.assertAllOnce(r, 2)
+            self.assertAllOnce(r, 1 - r["robot"])
+            # Robot 2 missed every original broadcast: it got them as retransmissions.
+            self.assertGreaterEqual(r["resent"]["descriptor"], self.MESSAGES)
+            self.assertIn(("appeared", 2), [(e["type"], e["robot"]) for e in r["events"]])
+        self.assertEqual(r2["neighbours"], [0, 1])
+        self.assertEqual(r2["duplicates"] + r0["duplicates"] + r1["duplicates"], 0)
+
+    def test_killed_robot_restarts_and_catches_up(self):
+        steady = [self.start(robot, 152, 11) for robot in (0, 2)]
+        first = self.start(1, 152, 60, "--incarnation", "1000")
+        time.sleep(3)
+        first.send_signal(signal.SIGKILL)
+        first.communicate(timeout=30)
+        second = self.start(1, 152, 5, "--incarnation", "1001")
+        r1 = self.finish(second)
+        r0, r2 = (self.finish(p) for p in steady)
+        # The new life has no memory: it gets everything again, once.
+        self.assertEqual(r1["incarnation"], 1001)
+        self.assertEqual(r1["neighbours"], [0, 2])
+        for peer in (0, 2):
+            self.assertEqual(len(r1["lives"][str(peer)]), 1)
+            self.assertAllOnce(r1, peer)
+        self.assertEqual(r1["duplicates"], 0)
+        for r in (r0, r2):
+            self.assertEqual([l["incarnation"] for l in r["lives"]["1"]], [1000, 1001])
+            self.assertAllOnce(r, 1, 1000)
+            self.assertAllOnce(r, 1, 1001)
+            self.assertEqual(r["received"]["1"], list(range(self.MESSAGES)))
+            self.assertIn(("restarted", 1), [(e["type"], e["robot"]) for e in r["events"]])
+            self.assertAllOnce(r, 2 - r["robot"])
+            self.assertEqual(r["duplicates"], 0)
+
+    def test_signal_ends_early_with_summary_and_options_override_config(self):
+        with tempfile.NamedTemporaryFile("w", suffix=".yaml", delete=False) as f:
+            f.write("dds:\n  domain: 7\n  swarm: from-config\n"
+                    "messenger:\n  heartbeat_period: 0.1\n")
+        self.addCleanup(os.unlink, f.name)
+        proc = subprocess.Popen([DCL_SLAM, "--config", f.name, "ping", "--robot", "3",
+                                 "--domain", "153", "--interface", "lo", "--duration", "120"],
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.addCleanup(self.stop, proc)
+        time.sleep(2)
+        proc.send_signal(signal.SIGTERM)
+        out, err = proc.communicate(timeout=30)
+        self.assertEqual(proc.returncode, 0, err)
+        self.assertIn("robot 3", out)
+        self.assertIn("swarm 'from-config', DDS domain 153 on lo", out)
+        self.assertIn("interrupted", out)
+        self.assertIn("neighbours heard: none", out)
+        # heartbeat_period 0.1 s from the config: far more beats than the default 1 s gives.
+        beats = int(re.search(r"sent: .*heartbeat (\d+)", out).group(1))
+        self.assertGreaterEqual(beats, 8)
+
+    def test_bad_options_are_named(self):
+        for args, named in ((["--robot", "255"], "--robot"),
+                            (["--robot", "0", "--domain", "300"], "domain"),
+                            (["--robot", "0", "--swarm", "*"], "swarm"),
+                            (["--robot", "0", "--duration", "0"], "--duration")):
+            with self.subTest(args=args):
+                code, _, err = run("ping", *args, check=False)
+                self.assertEqual(code, 1)
+                self.assertIn(named, err)
+                self.assertEqual(len(err.strip().splitlines()), 1)

@@ -1,0 +1,243 @@
+#pragma once
+
+/// Every message robots exchange (DESIGN.md §4, paper §III), as plain C++
+/// values. The wire format is protobuf (proto/dcl.proto) with fixed-layout
+/// packed fields where precision allows; it stays inside dcl::comm, so no
+/// other module includes protobuf. Large payloads travel as the bytes of the
+/// codecs that own them (place::encodeIris, registration::encodeVerificationCloud),
+/// which validate themselves when the receiver decodes them.
+///
+/// encode() writes one message; decode() never trusts its input: sizes,
+/// counts, ranges, enum values, versions and payload bounds are checked, and
+/// anything wrong comes back as a DropReason with a one-line detail, never as
+/// an exception or a crash.
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <span>
+#include <string>
+#include <string_view>
+#include <variant>
+#include <vector>
+
+#include <dcl/core/ids.hpp>
+#include <dcl/core/se3.hpp>
+
+namespace dcl::comm {
+
+/// The schema version every message carries; a decoder drops any other.
+inline constexpr std::uint32_t kSchemaVersion = 1;
+/// The largest encoded message a decoder looks at (a map summary's cloud is the largest payload).
+inline constexpr std::size_t kMaxMessageBytes = 2 * 1024 * 1024;
+/// Payload bounds checked before anything is decoded.
+inline constexpr std::size_t kMaxDescriptorBytes = 64 * 1024;
+inline constexpr std::size_t kMaxCloudBytes = 1024 * 1024;
+/// Estimates or poses in one message at most.
+inline constexpr std::size_t kMaxEstimates = 100'000;
+/// Neighbours acknowledged in one heartbeat at most.
+inline constexpr std::size_t kMaxAcks = 255;
+
+/// What a message is; also the traffic meter's categories.
+enum class MessageKind : std::uint8_t {
+  heartbeat,           ///< neighbour state and acknowledgements
+  descriptor,          ///< stage 1: a keyframe's place descriptor
+  loop_candidate,      ///< stage 2: a candidate match with the compact keyframe cloud
+  loop_measurement,    ///< stage 3: the verified relative pose and covariance, or the refusal
+  dgs_state,           ///< DGS: a robot's optimisation state
+  rotation_estimates,  ///< DGS stage 1: separator rotation estimates
+  pose_estimates,      ///< DGS stage 2 and the refinement: separator pose estimates
+  summary_request,     ///< asks a robot for its trajectory or map summary
+  trajectory_summary,  ///< a robot's keyframe poses
+  map_summary,         ///< a robot's voxel-filtered map
+};
+inline constexpr std::size_t kMessageKinds = 10;
+
+/// "heartbeat", "descriptor", ... (metrics and logs).
+std::string_view name(MessageKind kind);
+
+/// Reliable kinds are kept by the sender until acknowledged and sent again to
+/// a neighbour that missed them (Messenger); the others are current state,
+/// worthless once stale, and sent once.
+[[nodiscard]] bool isReliable(MessageKind kind);
+
+/// Who sent a message to whom, in which stream and order.
+struct Header {
+  std::uint32_t version = kSchemaVersion;
+  core::RobotId sender;
+  std::optional<core::RobotId> receiver;  ///< nullopt: every robot in range
+  /// The sender's process life: a restarted robot has a larger one, so its
+  /// neighbours reset what they know of it instead of taking its new
+  /// messages for replays.
+  std::uint32_t incarnation = 0;
+  /// Per sender: reliable broadcasts, reliable messages to each receiver and
+  /// best-effort messages are three counters, each from 1.
+  std::uint64_t sequence = 0;
+};
+
+/// A neighbour's acknowledgement of what it received from one robot.
+struct Ack {
+  core::RobotId peer;             ///< the robot acknowledged
+  std::uint32_t incarnation = 0;  ///< of the peer, as the acknowledging robot knows it
+  std::uint64_t broadcast = 0;    ///< every reliable broadcast up to this one received
+  std::uint64_t unicast = 0;  ///< every reliable message to the acknowledging robot up to this one
+  /// Received beyond the first gap: bit i set when broadcast + 2 + i arrived
+  /// (unicast + 2 + i), so that a loss does not make the sender repeat what followed it.
+  std::uint64_t broadcast_above = 0;
+  std::uint64_t unicast_above = 0;
+};
+
+struct Heartbeat {
+  double stamp = 0.0;           ///< s, the sender's clock
+  std::uint32_t keyframes = 0;  ///< keyframes the sender holds
+  std::vector<Ack> acks;
+};
+
+/// Stage 1.
+struct DescriptorMessage {
+  core::KeyframeId keyframe;
+  double stamp = 0.0;                    ///< s, the keyframe's time
+  std::vector<std::uint8_t> descriptor;  ///< place::encodeIris (or the Scan Context codec)
+};
+
+/// Stage 2: the sender's keyframe `query` seems to be the receiver's `match`.
+struct LoopCandidate {
+  core::KeyframeId query;           ///< the sender's keyframe
+  core::KeyframeId match;           ///< the receiver's keyframe
+  float yaw = 0.0F;                 ///< rad, the descriptor's yaw of query in match, [-pi, pi]
+  float distance = 0.0F;            ///< the descriptor distance, [0, 1]
+  std::vector<std::uint8_t> cloud;  ///< registration::encodeVerificationCloud of query's keyframe
+};
+
+/// A verification's outcome: registration::RejectReason, in its order, and two
+/// refusals before any registration.
+enum class LoopStatus : std::uint8_t {
+  verified,
+  too_few_points,
+  not_converged,
+  low_inlier_share,
+  high_fitness,
+  degenerate,
+  no_submap,  ///< the receiver holds no keyframes around `match`
+  bad_cloud,  ///< the candidate's cloud did not decode
+};
+inline constexpr std::uint8_t kLoopStatuses = 8;
+
+/// Stage 3: the answer to a LoopCandidate, sent back to the robot that asked.
+struct LoopMeasurement {
+  core::KeyframeId query;  ///< the receiver's keyframe (the candidate's query)
+  core::KeyframeId match;  ///< the sender's keyframe
+  LoopStatus status = LoopStatus::verified;
+  Eigen::Isometry3d T_match_query = Eigen::Isometry3d::Identity();  ///< when verified
+  core::Matrix6d covariance = core::Matrix6d::Identity();           ///< [rho; phi], when verified
+};
+
+/// Which optimisation a DGS message belongs to, and where in it the sender is.
+enum class OptimisationStage : std::uint8_t { idle, rotation, pose, refine, done };
+inline constexpr std::uint8_t kOptimisationStages = 5;
+
+/// What the sender knows of one member of its group (backend::DgsProgress).
+struct MemberProgress {
+  core::RobotId robot;
+  std::int32_t iteration = 0;  ///< its latest step heard of
+  std::int32_t converged_since =
+      -1;  ///< first step of its current run of converged steps; -1: none
+  bool finished = false;
+};
+
+/// A robot's optimisation state (Algorithm 1, backend::DgsMessage without the
+/// estimates): round, stage and step, whether it has initialised in this
+/// stage, whether its last change was under the threshold, and its view of
+/// the group's progress, which ends the stage for everyone alike. Sent alone
+/// when there are no estimates to send (or to abandon a round), and as part
+/// of every RotationEstimates and PoseEstimates message.
+struct DgsState {
+  std::uint32_t round = 0;
+  OptimisationStage stage = OptimisationStage::idle;
+  std::uint32_t iteration = 0;
+  bool initialised = false;
+  bool converged = false;
+  bool abort = false;   ///< the sender abandons the round (a member went silent)
+  float change = 0.0F;  ///< the last step's estimate change, >= 0
+  std::vector<MemberProgress> progress;
+};
+
+/// Separator rotation estimates of DGS stage 1: the chordal relaxation's
+/// 3x3 matrices, not projected (entries within +/-2), of the sender's poses.
+struct RotationEstimates {
+  DgsState state;
+  std::vector<std::pair<core::KeyframeId, Eigen::Matrix3d>> rotations;
+};
+
+/// Separator pose estimates of the sender's poses (DGS stage 2, the refinement).
+struct PoseEstimates {
+  DgsState state;
+  std::vector<std::pair<core::KeyframeId, Eigen::Isometry3d>> poses;
+};
+
+enum class SummaryKind : std::uint8_t { trajectory, map };
+
+struct SummaryRequest {
+  SummaryKind what = SummaryKind::trajectory;
+};
+
+/// A robot's keyframe poses T_world_keyframe in its own world frame.
+struct TrajectorySummary {
+  std::vector<std::pair<core::KeyframeId, Eigen::Isometry3d>> poses;
+};
+
+/// A robot's map: its keyframe clouds, voxel-filtered, in its own world frame.
+struct MapSummary {
+  std::uint32_t keyframes = 0;      ///< keyframes merged
+  std::vector<std::uint8_t> cloud;  ///< registration::encodeVerificationCloud
+};
+
+using Body =
+    std::variant<Heartbeat, DescriptorMessage, LoopCandidate, LoopMeasurement, DgsState,
+                 RotationEstimates, PoseEstimates, SummaryRequest, TrajectorySummary, MapSummary>;
+
+/// The kind of a body (its index in Body).
+[[nodiscard]] MessageKind kindOf(const Body& body);
+
+struct Message {
+  Header header;
+  Body body;
+
+  [[nodiscard]] MessageKind kind() const { return kindOf(body); }
+};
+
+/// Why a received message was dropped (counted per reason and peer).
+enum class DropReason : std::uint8_t {
+  oversized,          ///< over kMaxMessageBytes
+  malformed,          ///< not a protobuf message of the schema (truncated, corrupt)
+  wrong_version,      ///< another schema version
+  invalid_field,      ///< a field out of range or a payload over its bound
+  sender_mismatch,    ///< the header's sender is not the robot it came from
+  stale_incarnation,  ///< from an earlier life of the sender
+  duplicate,          ///< already delivered (a retransmission or a replay)
+  out_of_window,      ///< a sequence too far ahead of what was received
+  not_for_me,         ///< addressed to another robot (normal on a shared medium)
+};
+inline constexpr std::size_t kDropReasons = 9;
+
+std::string_view name(DropReason reason);
+
+/// A decoded message, or why there is none.
+struct Decoded {
+  std::optional<Message> message;
+  DropReason reason = DropReason::malformed;  ///< when there is no message
+  std::string detail;                         ///< one line naming the field and what was wrong
+};
+
+/// The wire bytes of `message`. Throws core::Error when a value cannot be
+/// encoded (an id out of range, a rotation entry beyond +/-2, a payload over
+/// its bound): a sender's bug, not a peer's.
+std::vector<std::uint8_t> encode(const Message& message);
+
+/// Decodes and validates one message; never throws.
+Decoded decode(std::span<const std::uint8_t> bytes);
+
+}  // namespace dcl::comm

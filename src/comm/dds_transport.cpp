@@ -1,0 +1,340 @@
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <string_view>
+
+#include <dds/dds.h>
+
+#include <dcl/comm/dds_transport.hpp>
+#include <dcl/core/error.hpp>
+
+#include "envelope.h"
+
+namespace dcl::comm {
+
+namespace {
+
+/// One topic per QoS: on a shared topic a best-effort reader would match the
+/// reliable writer too, and every reliable sample would arrive twice.
+constexpr std::array<const char*, 2> kTopicNames = {"dcl_reliable", "dcl_best_effort"};
+
+constexpr std::uint32_t kMaxDomain = 232;  // DDSI port mapping: 7400 + 250 * domain < 65536
+constexpr std::uint32_t kMaxHistory = 65536;
+constexpr std::size_t kMaxSwarmChars = 64;
+constexpr std::size_t kMaxInterfaceChars = 15;  // IFNAMSIZ - 1 on Linux
+
+/// How long a reliable write may wait for acknowledgements to free the
+/// writer's history. Transport::send must not stall the robot's loop; a write
+/// refused here is counted, and Messenger sends the message again later.
+constexpr dds_duration_t kMaxWriteBlocking = DDS_MSECS(10);
+
+/// Largest serialised envelope a domain we configure accepts: the largest
+/// message plus the envelope's header and routing fields. Bounds what a
+/// hostile peer can make this process allocate.
+constexpr std::size_t kMaxSampleBytes = kMaxMessageBytes + 64;
+
+/// Samples taken per dds_take call.
+constexpr std::uint32_t kTakeBatch = 64;
+
+std::size_t index(Qos qos) {
+  return qos == Qos::reliable ? 0 : 1;
+}
+
+[[noreturn]] void failCall(const std::string& call, dds_return_t rc) {
+  throw core::Error("DDS: " + call + " failed: " + dds_strretcode(rc));
+}
+
+/// Returns `entity`, or throws naming `call` when it is an error code.
+dds_entity_t checked(dds_entity_t entity, const std::string& call) {
+  if (entity < 0) failCall(call, entity);
+  return entity;
+}
+
+bool allOf(std::string_view text, std::string_view extra) {
+  return std::all_of(text.begin(), text.end(), [&](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+           extra.find(c) != std::string_view::npos;
+  });
+}
+
+/// Cyclone's configuration for one interface with multicast discovery on it
+/// (multicast is off by default on loopback, and discovery needs it).
+std::string interfaceXml(const std::string& interface) {
+  return "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"" + interface +
+         "\" multicast=\"true\"/></Interfaces><AllowMulticast>true</AllowMulticast></General>"
+         "<Internal><MaxSampleSize>" +
+         std::to_string(kMaxSampleBytes) + "B</MaxSampleSize></Internal></Domain></CycloneDDS>";
+}
+
+/// The DDS domains this process has joined. A domain created with an explicit
+/// configuration lives until it is deleted, and deleting it deletes every
+/// participant in it, so several transports of one process (tests, a swarm
+/// in one process) share it and the last one to leave deletes it.
+class DomainRegistry {
+ public:
+  static DomainRegistry& instance() {
+    static DomainRegistry registry;
+    return registry;
+  }
+
+  void acquire(std::uint32_t domain, const std::string& interface) {
+    const std::lock_guard lock(mutex_);
+    auto it = domains_.find(domain);
+    if (it == domains_.end()) {
+      dds_entity_t handle = 0;  // 0: created with the first participant, deleted with the last
+      if (!interface.empty()) {
+        const std::string xml = interfaceXml(interface);
+        handle = checked(dds_create_domain(domain, xml.c_str()),
+                         "dds_create_domain(domain " + std::to_string(domain) + ", interface '" +
+                             interface + "')");
+      }
+      it = domains_.emplace(domain, Entry{handle, interface, 0}).first;
+    } else if (!interface.empty() && interface != it->second.interface) {
+      throw core::Error("dds config: field 'interface' is '" + interface + "' but domain " +
+                        std::to_string(domain) + " is already open in this process with " +
+                        (it->second.interface.empty() ? std::string("the default interfaces")
+                                                      : "'" + it->second.interface + "'"));
+    }
+    ++it->second.users;
+  }
+
+  void release(std::uint32_t domain) {
+    const std::lock_guard lock(mutex_);
+    const auto it = domains_.find(domain);
+    if (it == domains_.end() || --it->second.users > 0) return;
+    if (it->second.handle > 0) dds_delete(it->second.handle);
+    domains_.erase(it);
+  }
+
+ private:
+  struct Entry {
+    dds_entity_t handle = 0;
+    std::string interface;
+    int users = 0;
+  };
+  std::mutex mutex_;
+  std::map<std::uint32_t, Entry> domains_;
+};
+
+/// This transport's share of its domain.
+class DomainLease {
+ public:
+  DomainLease(std::uint32_t domain, const std::string& interface) : domain_(domain) {
+    DomainRegistry::instance().acquire(domain, interface);
+  }
+  ~DomainLease() { DomainRegistry::instance().release(domain_); }
+  DomainLease(const DomainLease&) = delete;
+  DomainLease& operator=(const DomainLease&) = delete;
+
+ private:
+  std::uint32_t domain_;
+};
+
+/// A DDS participant; deleting it deletes everything created under it.
+class Participant {
+ public:
+  explicit Participant(std::uint32_t domain)
+      : handle_(checked(dds_create_participant(domain, nullptr, nullptr),
+                        "dds_create_participant(domain " + std::to_string(domain) + ")")) {}
+  ~Participant() { dds_delete(handle_); }
+  Participant(const Participant&) = delete;
+  Participant& operator=(const Participant&) = delete;
+
+  [[nodiscard]] dds_entity_t handle() const { return handle_; }
+
+ private:
+  dds_entity_t handle_;
+};
+
+struct QosDeleter {
+  void operator()(dds_qos_t* qos) const { dds_delete_qos(qos); }
+};
+using QosPtr = std::unique_ptr<dds_qos_t, QosDeleter>;
+
+QosPtr partitionQos(const std::string& swarm) {
+  QosPtr qos(dds_create_qos());
+  dds_qset_partition1(qos.get(), swarm.c_str());
+  return qos;
+}
+
+/// Reader and writer QoS: the topic's reliability, KEEP_LAST(history), and
+/// nothing from this participant (a robot does not hear itself).
+QosPtr endpointQos(Qos qos, std::uint32_t history) {
+  QosPtr q(dds_create_qos());
+  if (qos == Qos::reliable) {
+    dds_qset_reliability(q.get(), DDS_RELIABILITY_RELIABLE, kMaxWriteBlocking);
+  } else {
+    dds_qset_reliability(q.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
+  }
+  dds_qset_history(q.get(), DDS_HISTORY_KEEP_LAST, static_cast<std::int32_t>(history));
+  dds_qset_ignorelocal(q.get(), DDS_IGNORELOCAL_PARTICIPANT);
+  return q;
+}
+
+/// Returns a reader's loan however the copying ends.
+class Loan {
+ public:
+  explicit Loan(dds_entity_t reader) : reader_(reader) {}
+  ~Loan() {
+    if (count_ > 0) dds_return_loan(reader_, samples.data(), count_);
+  }
+  Loan(const Loan&) = delete;
+  Loan& operator=(const Loan&) = delete;
+
+  /// Takes up to kTakeBatch samples; returns how many.
+  std::int32_t take() {
+    const dds_return_t n = dds_take(reader_, samples.data(), infos.data(), kTakeBatch, kTakeBatch);
+    if (n < 0) failCall("dds_take", n);
+    count_ = n;
+    return n;
+  }
+
+  std::array<void*, kTakeBatch> samples{};
+  std::array<dds_sample_info_t, kTakeBatch> infos{};
+
+ private:
+  dds_entity_t reader_;
+  std::int32_t count_ = 0;
+};
+
+}  // namespace
+
+void validate(const DdsConfig& config) {
+  const auto fail = [](const std::string& field, const std::string& what) {
+    throw core::Error("dds config: field '" + field + "' " + what);
+  };
+  if (config.domain > kMaxDomain)
+    fail("domain", "is " + std::to_string(config.domain) + ", must be in 0..232");
+  // Partition names match with wildcards ('*', '?'): a swarm named "*" would hear every swarm.
+  if (config.swarm.empty() || config.swarm.size() > kMaxSwarmChars || !allOf(config.swarm, "_-.:/"))
+    fail("swarm",
+         "is '" + config.swarm + "', must be 1..64 letters, digits or '_', '-', '.', ':', '/'");
+  if (config.interface.size() > kMaxInterfaceChars || !allOf(config.interface, "_-.:"))
+    fail("interface", "is '" + config.interface +
+                          "', must be a network interface name (up to 15 letters, digits or "
+                          "'_', '-', '.', ':') or empty");
+  if (config.history < 1 || config.history > kMaxHistory)
+    fail("history", "is " + std::to_string(config.history) + ", must be in 1..65536");
+}
+
+struct DdsTransport::Impl {
+  Impl(core::RobotId robot, const DdsConfig& config)
+      : self(robot), lease(config.domain, config.interface), participant(config.domain) {
+    const dds_entity_t pp = participant.handle();
+    const QosPtr partition = partitionQos(config.swarm);
+    const dds_entity_t publisher =
+        checked(dds_create_publisher(pp, partition.get(), nullptr), "dds_create_publisher");
+    const dds_entity_t subscriber =
+        checked(dds_create_subscriber(pp, partition.get(), nullptr), "dds_create_subscriber");
+    waitset = checked(dds_create_waitset(pp), "dds_create_waitset");
+    for (const Qos qos : {Qos::reliable, Qos::best_effort}) {
+      const std::size_t i = index(qos);
+      const std::string name = kTopicNames[i];
+      const dds_entity_t topic =
+          checked(dds_create_topic(pp, &dcl_dds_Envelope_desc, name.c_str(), nullptr, nullptr),
+                  "dds_create_topic(" + name + ")");
+      const QosPtr endpoint = endpointQos(qos, config.history);
+      writers[i] = checked(dds_create_writer(publisher, topic, endpoint.get(), nullptr),
+                           "dds_create_writer(" + name + ")");
+      readers[i] = checked(dds_create_reader(subscriber, topic, endpoint.get(), nullptr),
+                           "dds_create_reader(" + name + ")");
+      const dds_entity_t condition = checked(dds_create_readcondition(readers[i], DDS_ANY_STATE),
+                                             "dds_create_readcondition(" + name + ")");
+      const dds_return_t rc = dds_waitset_attach(waitset, condition, condition);
+      if (rc < 0) failCall("dds_waitset_attach(" + name + ")", rc);
+    }
+  }
+
+  void write(std::uint8_t receiver, MessageKind kind, std::span<const std::uint8_t> bytes) {
+    dcl_dds_Envelope envelope{};
+    envelope.sender = self.value();
+    envelope.receiver = receiver;
+    envelope.kind = static_cast<std::uint8_t>(kind);
+    // DDS serialises the sample inside dds_write and keeps no pointer to it.
+    envelope.payload._length = envelope.payload._maximum = static_cast<std::uint32_t>(bytes.size());
+    envelope.payload._buffer = const_cast<std::uint8_t*>(bytes.data());
+    envelope.payload._release = false;
+    if (dds_write(writers[index(qosOf(kind))], &envelope) < 0) ++failed;
+  }
+
+  /// Whether a sample is meant for this robot and can be attributed at all.
+  [[nodiscard]] bool accepts(const dcl_dds_Envelope& envelope) const {
+    const core::RobotId sender(envelope.sender);
+    return sender.valid() && sender != self && envelope.kind < kMessageKinds &&
+           (envelope.receiver == 0 || envelope.receiver == self.value() + 1);
+  }
+
+  void takeAll(dds_entity_t reader, std::vector<Datagram>& out) const {
+    for (;;) {
+      Loan loan(reader);
+      const std::int32_t n = loan.take();
+      for (std::int32_t i = 0; i < n; ++i) {
+        const auto k = static_cast<std::size_t>(i);
+        if (!loan.infos[k].valid_data) continue;  // an instance's state change, no data
+        const auto& envelope = *static_cast<const dcl_dds_Envelope*>(loan.samples[k]);
+        if (!accepts(envelope)) continue;
+        const std::uint8_t* bytes = envelope.payload._buffer;
+        out.push_back({core::RobotId(envelope.sender), static_cast<MessageKind>(envelope.kind),
+                       std::vector<std::uint8_t>(bytes, bytes + envelope.payload._length)});
+      }
+      if (n < static_cast<std::int32_t>(kTakeBatch)) return;
+    }
+  }
+
+  core::RobotId self;
+  // Destroyed in reverse order: the participant (and all under it) before
+  // this transport's share of the domain is given back.
+  DomainLease lease;
+  Participant participant;
+  dds_entity_t waitset = 0;
+  std::array<dds_entity_t, 2> writers{};
+  std::array<dds_entity_t, 2> readers{};
+  std::atomic<std::size_t> failed{0};
+};
+
+DdsTransport::DdsTransport(core::RobotId self, const DdsConfig& config) {
+  validate(config);
+  if (!self.valid()) throw core::Error("DdsTransport: invalid robot id");
+  impl_ = std::make_unique<Impl>(self, config);
+}
+
+DdsTransport::~DdsTransport() = default;
+
+core::RobotId DdsTransport::self() const {
+  return impl_->self;
+}
+
+void DdsTransport::send(std::optional<core::RobotId> to, MessageKind kind,
+                        std::span<const std::uint8_t> bytes) {
+  if (to && !to->valid()) throw core::Error("DdsTransport::send: invalid receiver id");
+  if (bytes.size() > kMaxMessageBytes) {
+    ++impl_->failed;
+    return;
+  }
+  impl_->write(to ? static_cast<std::uint8_t>(to->value() + 1) : std::uint8_t{0}, kind, bytes);
+}
+
+std::vector<Datagram> DdsTransport::receive() {
+  // DDS keeps each sender's order on each QoS path; across the two paths and
+  // across senders the order of arrival is not known (Messenger needs none).
+  std::vector<Datagram> out;
+  for (const dds_entity_t reader : impl_->readers) impl_->takeAll(reader, out);
+  return out;
+}
+
+bool DdsTransport::wait(std::chrono::milliseconds timeout) {
+  const dds_duration_t relative = DDS_MSECS(std::max<std::int64_t>(timeout.count(), 0));
+  const dds_return_t rc = dds_waitset_wait(impl_->waitset, nullptr, 0, relative);
+  if (rc < 0) failCall("dds_waitset_wait", rc);
+  return rc > 0;
+}
+
+std::size_t DdsTransport::failedWrites() const {
+  return impl_->failed.load();
+}
+
+}  // namespace dcl::comm
