@@ -50,6 +50,9 @@ void addPgoCommand(CLI::App& app, const AppConfig& config);
 /// whom, and that test broadcasts arrive exactly once (cmd_ping.cpp).
 void addPingCommand(CLI::App& app, const AppConfig& config);
 
+/// `run`: every robot of a dataset in one process over the simulated radio.
+void addRunCommand(CLI::App& app, const AppConfig& config);
+
 /// `bench loops`: the inter-robot loop pipeline end to end, graded by ground truth (cmd_loops.cpp).
 void addBenchLoopsCommand(CLI::App& bench, const AppConfig& config);
 

@@ -59,6 +59,7 @@ int run(int argc, char** argv) {
   dcl::apps::addPcmCommand(app, config);
   dcl::apps::addPgoCommand(app, config);
   dcl::apps::addPingCommand(app, config);
+  dcl::apps::addRunCommand(app, config);
   auto* bench = app.add_subcommand("bench", "benchmarks of the system's parts");
   bench->require_subcommand(1);
   dcl::apps::addBenchSimCommand(*bench);

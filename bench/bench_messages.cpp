@@ -85,7 +85,8 @@ const std::vector<Sample>& samples() {
         scan, dcl::registration::CloudCodecConfig{.voxel_size = 1.0});
     return std::vector<Sample>{
         {{header(std::nullopt), heartbeat}},
-        {{header(std::nullopt), comm::DescriptorMessage{KeyframeId(1204), 812.4, descriptor}}},
+        {{header(std::nullopt),
+          comm::DescriptorMessage{KeyframeId(1204), 812.4, descriptor, std::nullopt}}},
         {{header(RobotId(2)),
           comm::LoopCandidate{KeyframeId(1204), KeyframeId(377), -2.9F, 0.24F, cloud}}},
         {{header(RobotId(2)),

@@ -51,7 +51,8 @@ std::vector<comm::Body> bodies(const std::vector<std::uint8_t>& descriptor,
   comm::PoseEstimates poses{state, {{KeyframeId(5), T}}};
   comm::RotationEstimates rotations{state, {{KeyframeId(5), T.rotation()}}};
   return {comm::Heartbeat{2.5, 40, {{RobotId(0), 1, 12, 3}}},
-          comm::DescriptorMessage{KeyframeId(4), 3.0, descriptor},
+          comm::DescriptorMessage{KeyframeId(4), 3.0, descriptor,
+                                  comm::OdometryStep{KeyframeId(3), T, loop.covariance}},
           comm::LoopCandidate{KeyframeId(4), KeyframeId(90), 1.2F, 0.18F, cloud},
           loop,
           comm::LoopMeasurement{KeyframeId(4), KeyframeId(91), comm::LoopStatus::degenerate},

@@ -257,6 +257,10 @@ void fill(wire::Envelope& e, const DescriptorMessage& m) {
   w.set_keyframe(keyframeOut(m.keyframe));
   w.set_stamp(m.stamp);
   w.set_descriptor(payloadOut(m.descriptor, kMaxDescriptorBytes, "descriptor"));
+  if (!m.odometry) return;
+  w.set_previous(keyframeOut(m.odometry->previous));
+  putPose(*w.mutable_odometry_pose(), m.odometry->T_previous_keyframe);
+  putCovariance(*w.mutable_odometry_covariance(), m.odometry->covariance);
 }
 
 void fill(wire::Envelope& e, const LoopCandidate& m) {
@@ -352,8 +356,18 @@ Heartbeat bodyIn(const wire::Heartbeat& w) {
 }
 
 DescriptorMessage bodyIn(const wire::Descriptor& w) {
-  return {keyframeIn(w.keyframe(), "descriptor"), finiteIn(w.stamp(), "descriptor stamp"),
-          payloadIn(w.descriptor(), kMaxDescriptorBytes, "descriptor")};
+  DescriptorMessage m{keyframeIn(w.keyframe(), "descriptor"),
+                      finiteIn(w.stamp(), "descriptor stamp"),
+                      payloadIn(w.descriptor(), kMaxDescriptorBytes, "descriptor"), std::nullopt};
+  if (w.odometry_pose().empty() && w.odometry_covariance().empty()) return m;
+  check(w.odometry_pose().size() == kPoseRecord, "descriptor: odometry pose record not 19 bytes");
+  check(w.odometry_covariance().size() == kCovarianceRecord,
+        "descriptor: odometry covariance record not 42 bytes");
+  const char* pose = w.odometry_pose().data();
+  const char* covariance = w.odometry_covariance().data();
+  m.odometry = OdometryStep{keyframeIn(w.previous(), "descriptor previous keyframe"),
+                            takePose(pose), takeCovariance(covariance)};
+  return m;
 }
 
 LoopCandidate bodyIn(const wire::LoopCandidate& w) {

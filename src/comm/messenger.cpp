@@ -364,7 +364,7 @@ struct Messenger::Impl {
     if (why.reason == DropReason::not_for_me || !logged.emplace(from, why.reason).second) return;
     const bool routine =
         why.reason == DropReason::duplicate || why.reason == DropReason::out_of_window;
-    spdlog::log(routine ? spdlog::level::info : spdlog::level::warn,
+    spdlog::log(routine ? spdlog::level::debug : spdlog::level::warn,
                 "{}: dropped a message from {}: {}: {} (further ones counted, not logged)",
                 robot(self), robot(from), name(why.reason), why.detail);
   }

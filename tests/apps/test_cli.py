@@ -6,9 +6,12 @@ independent numpy implementation of evo's definitions.
 import csv
 import json
 import os
+import re
+import signal
 import subprocess
 import sys
 import tempfile
+import time
 import unittest
 
 DCL_SLAM = os.environ["DCL_SLAM"]
@@ -722,9 +725,6 @@ if __name__ == "__main__":
     unittest.main()
 
 
-import re  # noqa: E402  (used by Ping alone)
-import signal  # noqa: E402
-import time  # noqa: E402
 
 
 class Ping(unittest.TestCase):
@@ -868,3 +868,62 @@ class Ping(unittest.TestCase):
                 self.assertEqual(code, 1)
                 self.assertIn(named, err)
                 self.assertEqual(len(err.strip().splitlines()), 1)
+
+
+class Run(unittest.TestCase):
+    """dcl-slam run: the demo campus, three robots over the simulated radio,
+    the first 150 scans of each, twice: the outputs are complete and the
+    same both times."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.dataset = os.path.join(cls.tmp.name, "demo")
+        run("simulate", "--preset", "demo", "--out", cls.dataset)
+        cls.outs = [os.path.join(cls.tmp.name, f"run{i}") for i in (1, 2)]
+        cls.metrics = []
+        for out, threads in zip(cls.outs, ("1", "2")):
+            _, stdout, _ = run("run", "--dataset", cls.dataset, "--out", out, "--max-frames",
+                               "150", "--threads", threads, "--json")
+            cls.metrics.append(json.loads(stdout))
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def test_every_output_is_written(self):
+        out = self.outs[0]
+        for name in ("metrics.json", "report.html"):
+            self.assertTrue(os.path.getsize(os.path.join(out, name)) > 0, name)
+        for robot in ("a", "b", "c"):
+            for name in ("trajectory.tum", "trajectory.kitti", "odometry.tum", "graph.g2o"):
+                self.assertTrue(os.path.exists(os.path.join(out, robot, name)), robot + "/" + name)
+            with open(os.path.join(out, robot, "trajectory.tum")) as f:
+                rows = [line for line in f if line.strip() and not line.startswith("#")]
+            self.assertGreater(len(rows), 0, robot)
+            self.assertEqual(len(rows), next(r["keyframes"] for r in self.metrics[0]["robots"]
+                                             if r["name"] == robot), robot)
+        with open(os.path.join(out, "metrics.json")) as f:
+            self.assertEqual(json.load(f), self.metrics[0])
+
+    def test_metrics_name_every_robot_with_its_figures(self):
+        robots = self.metrics[0]["robots"]
+        self.assertEqual([r["name"] for r in robots], ["a", "b", "c"])
+        for r in robots:
+            self.assertEqual(r["frames"], 150)
+            for field in ("ate_rmse", "ate_rmse_odometry_only", "bytes_sent", "bytes_received",
+                          "inter_loops_accepted", "inter_loops_rejected", "counters"):
+                self.assertIn(field, r)
+            self.assertEqual(r["counters"]["descriptors_sent"], r["keyframes"])
+        # Robot c barely moves in its first 15 s; a and b drive tens of metres.
+        evaluated = [r for r in robots if r["ate_rmse"] is not None]
+        self.assertGreaterEqual(len(evaluated), 2)
+        for r in evaluated:
+            self.assertLess(r["ate_rmse"], 1.0, r["name"])
+
+    def test_one_or_two_threads_give_the_same_run(self):
+        self.assertEqual(self.metrics[0], self.metrics[1])
+        for robot in ("a", "b", "c"):
+            with open(os.path.join(self.outs[0], robot, "graph.g2o")) as f1, \
+                    open(os.path.join(self.outs[1], robot, "graph.g2o")) as f2:
+                self.assertEqual(f1.read(), f2.read(), robot)

@@ -70,7 +70,8 @@ const registration::VerificationResult& realVerification() {
 
 TEST(Codec, DescriptorRoundTripsAndDescribesTheSameOnReceipt) {
   const place::IrisDescriptor sent = place::describeIris(test::kittiScan(0));
-  DescriptorMessage m{keyframe(42), 12.5, place::encodeIris(sent)};
+  DescriptorMessage m{keyframe(42), 12.5, place::encodeIris(sent), std::nullopt};
+  m.odometry = OdometryStep{keyframe(41), test::kittiRelative(0, 5), realVerification().covariance};
   std::size_t bytes = 0;
   const DescriptorMessage got = roundTrip(header(1, std::nullopt), m, &bytes);
   EXPECT_EQ(got.keyframe, m.keyframe);
@@ -79,7 +80,18 @@ TEST(Codec, DescriptorRoundTripsAndDescribesTheSameOnReceipt) {
   const place::IrisDescriptor received = place::decodeIris(got.descriptor);
   EXPECT_EQ(received.image.cells, sent.image.cells);
   EXPECT_EQ(received.features, sent.features);
-  EXPECT_LE(bytes, m.descriptor.size() + 32) << "the envelope adds a few bytes to the codec's";
+  ASSERT_TRUE(got.odometry);
+  EXPECT_EQ(got.odometry->previous, keyframe(41));
+  EXPECT_LT((got.odometry->T_previous_keyframe.translation() -
+             m.odometry->T_previous_keyframe.translation())
+                .norm(),
+            1e-5);
+  EXPECT_NEAR(got.odometry->covariance(0, 0) / m.odometry->covariance(0, 0), 1.0, 1e-3);
+  // The envelope and the odometry step (ids, a pose and a covariance record)
+  // add under a hundred bytes to the codec's.
+  EXPECT_LE(bytes, m.descriptor.size() + 100);
+  m.odometry.reset();
+  EXPECT_FALSE(roundTrip(header(1, std::nullopt), m).odometry);
 }
 
 TEST(Codec, LoopCandidateCarriesTheCompactCloud) {
@@ -239,7 +251,8 @@ TEST(Codec, StateSummariesAndHeartbeatsRoundTrip) {
 }
 
 TEST(Codec, EncodeRefusesWhatCannotGoOnTheWire) {
-  EXPECT_THROW((void)encode({header(0, 1), DescriptorMessage{keyframe(1), 0.0, {}}}), core::Error);
+  EXPECT_THROW((void)encode({header(0, 1), DescriptorMessage{keyframe(1), 0.0, {}, std::nullopt}}),
+               core::Error);
   LoopMeasurement bad;
   bad.T_match_query.translation().x() = std::nan("");
   EXPECT_THROW((void)encode({header(0, 1), bad}), core::Error);
@@ -250,7 +263,8 @@ TEST(Codec, EncodeRefusesWhatCannotGoOnTheWire) {
   no_sender.sender = core::RobotId();
   EXPECT_THROW((void)encode({no_sender, SummaryRequest{}}), core::Error);
   EXPECT_THROW((void)encode({header(0, 1),
-                             DescriptorMessage{keyframe(std::uint64_t{1} << 57), 0.0, {1, 2, 3}}}),
+                             DescriptorMessage{
+                                 keyframe(std::uint64_t{1} << 57), 0.0, {1, 2, 3}, std::nullopt}}),
                core::Error);
 }
 
@@ -329,7 +343,8 @@ std::vector<Message> samples() {
       registration::encodeVerificationCloud(test::kittiScan(3), coarse);
   return {
       {header(0, std::nullopt, 1), Heartbeat{1.0, 3, {{robot(1), 1, 2, 0}}}},
-      {header(0, std::nullopt, 2), DescriptorMessage{keyframe(3), 4.5, {9, 8, 7, 6, 5}}},
+      {header(0, std::nullopt, 2),
+       DescriptorMessage{keyframe(3), 4.5, {9, 8, 7, 6, 5}, std::nullopt}},
       {header(0, 1, 3), LoopCandidate{keyframe(3), keyframe(7), 0.5F, 0.2F, small_cloud}},
       {header(1, 0, 4), loop},
       {header(1, 0, 5),

@@ -215,7 +215,7 @@ const std::vector<std::uint8_t>& irisBytes(int which) {
 
 DescriptorMessage descriptor(int keyframe) {
   return {core::KeyframeId(static_cast<std::uint64_t>(keyframe)), 0.5 * keyframe,
-          irisBytes(keyframe % 8)};
+          irisBytes(keyframe % 8), std::nullopt};
 }
 
 LoopMeasurement measurement(int query) {
@@ -544,6 +544,7 @@ class LogCapture {
   LogCapture() : previous_(spdlog::default_logger()) {
     sink_ = std::make_shared<spdlog::sinks::ringbuffer_sink_mt>(1000);
     spdlog::set_default_logger(std::make_shared<spdlog::logger>("capture", sink_));
+    spdlog::default_logger()->set_level(spdlog::level::debug);  // routine drops log at debug
   }
   ~LogCapture() { spdlog::set_default_logger(previous_); }
   LogCapture(const LogCapture&) = delete;

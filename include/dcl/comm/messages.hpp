@@ -96,11 +96,21 @@ struct Heartbeat {
   std::vector<Ack> acks;
 };
 
+/// The sender's odometry factor from its previous keyframe to this one: with
+/// every descriptor, a neighbour holds the sender's odometry chain, which PCM
+/// needs to check two loops against each other (paper Eq. 8).
+struct OdometryStep {
+  core::KeyframeId previous;
+  Eigen::Isometry3d T_previous_keyframe = Eigen::Isometry3d::Identity();
+  core::Matrix6d covariance = core::Matrix6d::Identity();  ///< [rho; phi]
+};
+
 /// Stage 1.
 struct DescriptorMessage {
   core::KeyframeId keyframe;
   double stamp = 0.0;                    ///< s, the keyframe's time
   std::vector<std::uint8_t> descriptor;  ///< place::encodeIris (or the Scan Context codec)
+  std::optional<OdometryStep> odometry;  ///< none for a robot's first keyframe
 };
 
 /// Stage 2: the sender's keyframe `query` seems to be the receiver's `match`.

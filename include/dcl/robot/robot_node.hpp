@@ -1,0 +1,110 @@
+#pragma once
+
+/// One robot's whole life (paper Fig. 5, Algorithm 1) as a single-threaded
+/// event handler: scans in, messages in and out through a Transport, nothing
+/// else. The same node runs N times in one process over the simulated radio
+/// and once per process over Cyclone DDS.
+///
+/// Per scan: odometry, keyframe selection, intra-robot loops (LocalMapper).
+/// Per new keyframe: its LiDAR-Iris descriptor goes into the own place index
+/// and, with the odometry step that led to it, to every neighbour (stage 1;
+/// the Messenger re-sends it to neighbours met later). Per descriptor
+/// received: the neighbour's odometry chain grows, and the own index is
+/// searched; a match becomes a candidate sent, with the compact cloud of the
+/// own keyframe, to the robot that owns the matched place (stage 2). Per
+/// candidate received: verification against the own submap around the
+/// matched keyframe, and the answer back (stage 3). A verified loop, on
+/// either side, goes to the PCM of that robot pair; both robots of a pair
+/// hold the same loops and the same odometry chains, so both keep the same
+/// consistent set. The node never waits: a silent neighbour simply sends
+/// nothing, and one that returns is caught up by the Messenger.
+///
+/// Every decision is counted (RobotNode::counters), so a user can see why no
+/// loop was found: descriptors sent and received, candidates, verifications
+/// passed and refused by reason, loops PCM kept and rejected.
+
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <dcl/backend/pcm.hpp>
+#include <dcl/backend/pose_graph.hpp>
+#include <dcl/comm/messenger.hpp>
+#include <dcl/comm/transport.hpp>
+#include <dcl/core/ids.hpp>
+#include <dcl/core/keyframe.hpp>
+#include <dcl/core/point_cloud.hpp>
+#include <dcl/odometry/lidar_odometry.hpp>
+#include <dcl/odometry/local_mapper.hpp>
+#include <dcl/place/descriptor.hpp>
+#include <dcl/place/place_index.hpp>
+#include <dcl/registration/cloud_codec.hpp>
+#include <dcl/registration/verification.hpp>
+
+namespace dcl::robot {
+
+/// Everything a robot node is configured with: the modules' own sections.
+struct RobotConfig {
+  odometry::OdometryConfig odometry;              ///< the built-in LiDAR odometry
+  odometry::LocalMapperConfig mapper;             ///< keyframes, intra-robot loops
+  place::DescriptorConfig descriptor;             ///< must be LiDAR-Iris (the wire codec's)
+  place::PlaceIndexConfig index;                  ///< candidates and match threshold
+  registration::VerificationConfig verification;  ///< stage 2 verification and its cloud
+  /// PCM of each robot pair. Its `intra_loops` is not used: a neighbour only
+  /// knows this robot's odometry chain, and both robots must check loops
+  /// against the same trajectories to decide alike.
+  backend::PcmConfig pcm;
+  comm::MessengerConfig messenger;  ///< heartbeats, neighbours, retransmission
+};
+
+/// An inter-robot loop this robot knows of, and what became of it.
+struct InterLoop {
+  backend::Factor factor;  ///< from the verifying robot's keyframe to the querying robot's
+  bool accepted = false;   ///< in PCM's current consistent set
+};
+
+class RobotNode {
+ public:
+  /// Robot `transport.self()` in its life `incarnation` (> 0). Throws
+  /// core::Error for an invalid configuration (or a descriptor other than
+  /// LiDAR-Iris, the only one with a wire codec).
+  RobotNode(comm::Transport& transport, const RobotConfig& config, std::uint32_t incarnation = 1);
+  ~RobotNode();
+  RobotNode(const RobotNode&) = delete;
+  RobotNode& operator=(const RobotNode&) = delete;
+
+  [[nodiscard]] core::RobotId id() const;
+
+  /// A scan taken at `stamp` (s, the robot's clock), through the built-in odometry.
+  void addScan(double stamp, const core::PointCloud& scan);
+
+  /// Handles what arrived and runs the timers at `now` (s, non-decreasing).
+  void tick(double now);
+
+  /// Keyframes so far (clouds included).
+  [[nodiscard]] const std::vector<core::Keyframe>& keyframes() const;
+  /// The own pose graph: odometry and intra-robot loops (LocalMapper).
+  [[nodiscard]] const backend::PoseGraph& localGraph() const;
+  /// Every inter-robot loop known, with PCM's current verdict.
+  [[nodiscard]] std::vector<InterLoop> interLoops() const;
+  /// The local graph with the accepted inter-robot loops and the neighbours'
+  /// keyframes they reach: what the distributed optimisation works on.
+  [[nodiscard]] backend::PoseGraph graph() const;
+
+  /// Every decision counted, by name (see the class comment).
+  [[nodiscard]] const std::map<std::string, double>& counters() const;
+  [[nodiscard]] const comm::Messenger& messenger() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+/// Throws core::Error naming the first invalid field.
+void validate(const RobotConfig& config);
+
+}  // namespace dcl::robot

@@ -1,0 +1,157 @@
+// Robot nodes over the simulated radio, on a simulated campus: two robots
+// drive the same street a few seconds apart, so every place one sees the
+// other sees too. The three-stage exchange must find the loops, verify them
+// to the true relative pose, and both robots must keep the same loops.
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <set>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include <dcl/comm/sim_radio.hpp>
+#include <dcl/core/se3.hpp>
+#include <dcl/io/dataset.hpp>
+#include <dcl/robot/robot_node.hpp>
+#include <dcl/sim/sim_source.hpp>
+
+#include "../common/sim_convoy.hpp"
+
+namespace dcl::robot {
+namespace {
+
+struct SwarmRun {
+  std::vector<std::unique_ptr<RobotNode>> nodes;
+  std::vector<core::Trajectory> ground_truth;
+  std::unique_ptr<comm::SimRadio> radio;
+};
+
+SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_config = {}) {
+  SwarmRun run;
+  run.radio = std::make_unique<comm::SimRadio>(radio_config);
+  std::vector<std::unique_ptr<io::ScanSource>> scans = sim::openDatasetScans(convoy.spec);
+  for (std::size_t r = 0; r < scans.size(); ++r) {
+    const core::RobotId id(static_cast<std::uint8_t>(r));
+    run.nodes.push_back(std::make_unique<RobotNode>(run.radio->endpoint(id), RobotConfig{}));
+    run.ground_truth.push_back(io::readGroundTruth(convoy.spec, r));
+  }
+  const std::size_t frames = scans[0]->size();
+  double t = 0.0;
+  for (std::size_t i = 0; i < frames; ++i) {
+    t = scans[0]->stamp(i);
+    for (std::size_t r = 0; r < scans.size(); ++r) {  // links follow the true positions
+      const core::RobotId id(static_cast<std::uint8_t>(r));
+      run.radio->setPosition(id, run.ground_truth[r].pose(i).translation());
+    }
+    run.radio->advanceTo(t);
+    for (std::size_t r = 0; r < scans.size(); ++r) {
+      run.nodes[r]->addScan(scans[r]->stamp(i), scans[r]->scan(i));
+      run.nodes[r]->tick(t);
+    }
+  }
+  for (int extra = 1; extra <= 30; ++extra) {  // 3 s for the last answers
+    run.radio->advanceTo(t + 0.1 * extra);
+    for (auto& node : run.nodes) node->tick(t + 0.1 * extra);
+  }
+  return run;
+}
+
+const test::Convoy& convoy() {
+  static const test::Convoy c("node");
+  return c;
+}
+
+const SwarmRun& defaultRun() {
+  static const SwarmRun run = drive(convoy());
+  return run;
+}
+
+std::set<backend::LoopId> accepted(const RobotNode& node) {
+  std::set<backend::LoopId> out;
+  for (const InterLoop& loop : node.interLoops())
+    if (loop.accepted) out.insert(backend::loopId(loop.factor));
+  return out;
+}
+
+TEST(RobotNode, FindsVerifiesAndAgreesOnInterRobotLoops) {
+  const SwarmRun& run = defaultRun();
+  const RobotNode& a = *run.nodes[0];
+  const RobotNode& b = *run.nodes[1];
+  for (const auto& node : run.nodes) {
+    const auto& c = node->counters();
+    ASSERT_GT(node->keyframes().size(), 5u);
+    EXPECT_EQ(c.at("descriptors_sent"), static_cast<double>(node->keyframes().size()));
+  }
+  EXPECT_EQ(a.counters().at("descriptors_received"), static_cast<double>(b.keyframes().size()));
+  EXPECT_EQ(b.counters().at("descriptors_received"), static_cast<double>(a.keyframes().size()));
+  // Both robots hold the same consistent set, and it is not empty.
+  const std::set<backend::LoopId> kept = accepted(a);
+  EXPECT_GE(kept.size(), 3u);
+  EXPECT_EQ(kept, accepted(b));
+  for (const auto& node : run.nodes) {
+    std::string line;
+    for (const auto& [name, value] : node->counters())
+      line += " " + name + "=" + std::to_string(static_cast<long>(value));
+    std::printf("robot %d:%s\n", node->id().value(), line.c_str());
+  }
+}
+
+TEST(RobotNode, AcceptedLoopsMeasureTheTrueRelativePose) {
+  const SwarmRun& run = defaultRun();
+  std::size_t checked = 0;
+  for (const InterLoop& loop : run.nodes[0]->interLoops()) {
+    if (!loop.accepted) continue;
+    const auto pose = [&](const core::PoseKey& key) {
+      const RobotNode& owner = *run.nodes[key.robot.value()];
+      const double stamp = owner.keyframes().at(key.keyframe.value()).stamp;
+      return *run.ground_truth[key.robot.value()].at(stamp);
+    };
+    const Eigen::Isometry3d truth = pose(loop.factor.from).inverse() * pose(loop.factor.to);
+    const Eigen::Isometry3d error = truth.inverse() * loop.factor.T_from_to;
+    EXPECT_LT(error.translation().norm(), 0.5);
+    EXPECT_LT(core::rad2deg(core::rotationAngle(error.rotation())), 2.0);
+    ++checked;
+  }
+  EXPECT_GT(checked, 0u);
+}
+
+TEST(RobotNode, CountsEveryStageOfTheExchange) {
+  const SwarmRun& run = defaultRun();
+  double candidates_sent = 0.0;
+  double candidates_received = 0.0;
+  double answered = 0.0;
+  double heard_back = 0.0;
+  for (const auto& node : run.nodes) {
+    const auto& c = node->counters();
+    const auto get = [&c](const char* name) { return c.contains(name) ? c.at(name) : 0.0; };
+    candidates_sent += get("candidates_sent");
+    candidates_received += get("candidates_received");
+    for (const char* status : {"verified", "rejected_too_few_points", "rejected_not_converged",
+                               "rejected_low_inlier_share", "rejected_high_fitness",
+                               "rejected_degenerate", "rejected_no_submap", "rejected_bad_cloud"})
+      answered += get(status);
+    heard_back += get("measurements_verified") + get("measurements_refused");
+  }
+  EXPECT_GT(candidates_sent, 0.0);
+  EXPECT_EQ(candidates_received, candidates_sent);  // an always-on, lossless radio
+  EXPECT_EQ(answered, candidates_received);
+  EXPECT_EQ(heard_back, answered);
+}
+
+TEST(RobotNode, WorksAloneOutOfRangeAndSendsNothingItCannot) {
+  comm::SimRadioConfig far;
+  far.range = 1.0;  // the robots drive about 5 m apart: never within range
+  const SwarmRun run = drive(convoy(), far);
+  for (const auto& node : run.nodes) {
+    EXPECT_GT(node->keyframes().size(), 5u);
+    EXPECT_TRUE(node->interLoops().empty());
+    EXPECT_FALSE(node->counters().contains("descriptors_received"));
+  }
+}
+
+}  // namespace
+}  // namespace dcl::robot
