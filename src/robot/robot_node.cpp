@@ -1,4 +1,6 @@
 #include <algorithm>
+#include <cmath>
+#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
@@ -7,6 +9,7 @@
 #include <dcl/core/error.hpp>
 #include <dcl/place/descriptor_codec.hpp>
 #include <dcl/place/lidar_iris.hpp>
+#include <dcl/robot/dgs_wire.hpp>
 #include <dcl/robot/robot_node.hpp>
 
 namespace dcl::robot {
@@ -52,7 +55,38 @@ void validate(const RobotConfig& config) {
   place::validate(config.descriptor.iris);
   registration::validate(config.verification);
   comm::validate(config.messenger);
+  backend::validate(config.dgs);
+  for (const auto& [name, value] : {std::pair{"optimise_period", config.optimise_period},
+                                    std::pair{"round_timeout", config.round_timeout},
+                                    std::pair{"announce_period", config.announce_period}}) {
+    if (!(value > 0.0) || !std::isfinite(value))
+      throw core::Error(std::string("robot config: ") + name + " must be a finite number > 0");
+  }
 }
+
+namespace {
+
+constexpr double kNever = -std::numeric_limits<double>::infinity();
+
+/// What a robot announced of its loops.
+struct Link {
+  std::set<core::RobotId> neighbours;  ///< robots it shares accepted loops with
+  std::uint32_t accepted = 0;          ///< its accepted inter-robot loops
+};
+
+/// A DGS round this robot takes part in.
+struct Round {
+  std::uint32_t number = 0;  ///< the initiator's counter << 8 | the initiator's id
+  std::set<core::RobotId> group;
+  backend::DgsAgent agent;
+  double started = 0.0;
+};
+
+std::uint8_t initiator(std::uint32_t round) {
+  return static_cast<std::uint8_t>(round & 0xFFU);
+}
+
+}  // namespace
 
 /// What this robot knows of one neighbour it has heard descriptors from.
 struct Neighbour {
@@ -75,6 +109,15 @@ struct RobotNode::Impl {
   std::map<core::RobotId, Neighbour> neighbours;
   std::map<std::string, double> counters;
   double now = 0.0;
+  // Optimisation rounds.
+  std::map<core::RobotId, Link> links;
+  std::optional<Round> round;
+  std::set<std::uint32_t> finished;  ///< rounds this robot took part in and left
+  std::uint32_t rounds_started = 0;
+  double last_round_end = kNever;
+  double last_announce = kNever;
+  std::vector<std::pair<core::RobotId, std::uint32_t>> last_signature;
+  std::map<core::KeyframeId, Eigen::Isometry3d> optimised;  ///< own poses after the last round
 
   Impl(comm::Transport& transport, const RobotConfig& c, std::uint32_t incarnation)
       : self(transport.self()),
@@ -145,6 +188,9 @@ struct RobotNode::Impl {
   void tick(double time) {
     now = time;
     for (const Message& m : messenger.poll(now)) handle(m);
+    announce();
+    maybeStartRound();
+    stepRound();
   }
 
   void handle(const Message& m) {
@@ -153,6 +199,10 @@ struct RobotNode::Impl {
       return onDescriptor(from, *d);
     if (const auto* c = std::get_if<comm::LoopCandidate>(&m.body)) return onCandidate(from, *c);
     if (const auto* l = std::get_if<comm::LoopMeasurement>(&m.body)) return onMeasurement(from, *l);
+    if (const auto* a = std::get_if<comm::DgsState>(&m.body);
+        a != nullptr && a->stage == comm::OptimisationStage::idle)
+      return onAnnouncement(from, *a);
+    if (std::optional<backend::DgsMessage> dgs = fromWire(m)) onDgs(*dgs);
   }
 
   /// Stage 1 received: the neighbour's chain grows; the own index is searched.
@@ -259,6 +309,158 @@ struct RobotNode::Impl {
     counters["inter_loops_accepted"] = accepted;
     counters["inter_loops_rejected"] = known - accepted;
   }
+
+  // ---- optimisation rounds ------------------------------------------------
+
+  [[nodiscard]] std::set<core::RobotId> loopNeighbours() const {
+    std::set<core::RobotId> out;
+    for (const auto& [robot, n] : neighbours)
+      if (!n.accepted.empty()) out.insert(robot);
+    return out;
+  }
+
+  [[nodiscard]] std::uint32_t acceptedLoops() const {
+    return static_cast<std::uint32_t>(
+        counters.contains("inter_loops_accepted") ? counters.at("inter_loops_accepted") : 0.0);
+  }
+
+  /// Tells everyone in range which robots this one shares loops with.
+  void announce() {
+    if (now - last_announce < config.announce_period) return;
+    last_announce = now;
+    comm::DgsState state;
+    state.stage = comm::OptimisationStage::idle;
+    state.iteration = acceptedLoops();
+    for (const core::RobotId robot : loopNeighbours()) state.progress.push_back({robot});
+    if (state.progress.empty()) return;
+    messenger.send(std::nullopt, std::move(state), now);
+  }
+
+  void onAnnouncement(core::RobotId from, const comm::DgsState& state) {
+    Link& link = links[from];
+    link.neighbours.clear();
+    for (const comm::MemberProgress& p : state.progress) link.neighbours.insert(p.robot);
+    link.accepted = state.iteration;
+  }
+
+  /// The robots in range joined to this one by loops, as announced.
+  [[nodiscard]] std::set<core::RobotId> group() const {
+    const std::set<core::RobotId> present = messenger.neighbours();
+    std::set<core::RobotId> members{self};
+    std::vector<core::RobotId> todo{self};
+    while (!todo.empty()) {
+      const core::RobotId r = todo.back();
+      todo.pop_back();
+      std::set<core::RobotId> next = r == self ? loopNeighbours() : std::set<core::RobotId>{};
+      if (const auto it = links.find(r); it != links.end() && r != self)
+        next = it->second.neighbours;
+      for (const core::RobotId n : next) {
+        if ((n == self || present.contains(n)) && members.insert(n).second) todo.push_back(n);
+      }
+    }
+    return members;
+  }
+
+  [[nodiscard]] std::vector<std::pair<core::RobotId, std::uint32_t>> signature(
+      const std::set<core::RobotId>& members) const {
+    std::vector<std::pair<core::RobotId, std::uint32_t>> out;
+    for (const core::RobotId r : members) {
+      const auto it = links.find(r);
+      out.emplace_back(r,
+                       r == self ? acceptedLoops() : (it == links.end() ? 0 : it->second.accepted));
+    }
+    return out;
+  }
+
+  /// The lowest robot of a group starts a round when the group's loops changed.
+  void maybeStartRound() {
+    if (round || now - last_round_end < config.optimise_period) return;
+    const std::set<core::RobotId> members = group();
+    if (members.size() < 2 || *members.begin() != self) return;
+    if (signature(members) == last_signature) return;
+    join(((++rounds_started) << 8U) | self.value(), members);
+  }
+
+  /// The own part of the graph a round optimises: own poses at their latest
+  /// estimates, own factors, and the accepted loops to the group's members.
+  [[nodiscard]] backend::PoseGraph roundGraph(const std::set<core::RobotId>& members) const {
+    backend::PoseGraph g;
+    for (const core::Keyframe& k : mapper.keyframes()) g.addNode({self, k.id}, estimate(k.id));
+    for (const backend::Factor& f : mapper.graph().factors()) g.addFactor(f);
+    for (const auto& [robot, n] : neighbours) {
+      if (!members.contains(robot)) continue;
+      for (const auto& [id, f] : n.loops) {
+        if (!n.accepted.contains(id)) continue;
+        for (const core::PoseKey& end : {f.from, f.to})
+          if (!g.hasNode(end)) g.addNode(end, Eigen::Isometry3d::Identity());
+        g.addFactor(f);
+      }
+    }
+    return g;
+  }
+
+  void join(std::uint32_t number, const std::set<core::RobotId>& members) {
+    if (round) leave("dgs_rounds_abandoned");
+    round.emplace(
+        Round{number, members, backend::DgsAgent(self, roundGraph(members), config.dgs), now});
+    round->agent.startRound(members, number);
+    last_signature = signature(members);
+    count("dgs_rounds_joined");
+  }
+
+  void leave(const char* why) {
+    round->agent.abortRound();
+    finished.insert(round->number);
+    round.reset();
+    last_round_end = now;
+    count(why);
+  }
+
+  void onDgs(const backend::DgsMessage& m) {
+    if (finished.contains(m.round)) return;
+    if (!round || m.round != round->number) {
+      // A round led by a lower robot wins over this robot's own.
+      if (round && initiator(m.round) >= initiator(round->number)) return count("dgs_ignored");
+      std::set<core::RobotId> members{self, m.from};
+      for (const auto& [robot, p] : m.progress) members.insert(robot);
+      if (!members.contains(self)) return;
+      join(m.round, members);
+    }
+    round->agent.receive(m);
+  }
+
+  /// One DGS step a tick; the estimates taken when the round is done.
+  void stepRound() {
+    if (!round) return;
+    const std::set<core::RobotId> present = messenger.neighbours();
+    for (const core::RobotId r : round->group) {
+      if (r != self && !present.contains(r)) return leave("dgs_rounds_abandoned");
+    }
+    if (now - round->started > config.round_timeout) return leave("dgs_rounds_abandoned");
+    round->agent.iterate();
+    for (const backend::DgsMessage& m : round->agent.outgoing())
+      messenger.send(m.to, toWire(m), now);
+    if (round->agent.stage() != backend::DgsStage::done) return;
+    for (const auto& [key, T] : round->agent.estimates())
+      if (key.robot == self) optimised[key.keyframe] = T;
+    count("dgs_iterations_rotation", round->agent.stageIterations(backend::DgsStage::rotation));
+    count("dgs_iterations_pose", round->agent.stageIterations(backend::DgsStage::pose));
+    finished.insert(round->number);
+    round.reset();
+    last_round_end = now;
+    count("dgs_rounds");
+  }
+
+  /// The latest estimate of own keyframe `k`: optimised, or carried from the
+  /// last optimised keyframe before it by the local graph's relative poses.
+  [[nodiscard]] Eigen::Isometry3d estimate(core::KeyframeId k) const {
+    const std::vector<Eigen::Isometry3d>& local = mapper.smoothedPoses();
+    const Eigen::Isometry3d& T_local = local.at(k.value());
+    auto it = optimised.upper_bound(k);
+    if (it == optimised.begin()) return T_local;
+    --it;
+    return it->second * local.at(it->first.value()).inverse() * T_local;
+  }
 };
 
 RobotNode::RobotNode(comm::Transport& transport, const RobotConfig& config,
@@ -294,8 +496,14 @@ std::vector<InterLoop> RobotNode::interLoops() const {
   return out;
 }
 
+Eigen::Isometry3d RobotNode::estimate(core::KeyframeId k) const {
+  return impl_->estimate(k);
+}
+
 backend::PoseGraph RobotNode::graph() const {
   backend::PoseGraph g = impl_->mapper.graph();
+  for (const core::Keyframe& k : impl_->mapper.keyframes())
+    g.setEstimate({impl_->self, k.id}, impl_->estimate(k.id));
   for (const InterLoop& loop : interLoops()) {
     if (!loop.accepted) continue;
     for (const core::PoseKey& end : {loop.factor.from, loop.factor.to}) {

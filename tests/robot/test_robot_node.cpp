@@ -15,6 +15,7 @@
 
 #include <dcl/comm/sim_radio.hpp>
 #include <dcl/core/se3.hpp>
+#include <dcl/eval/run_report.hpp>
 #include <dcl/io/dataset.hpp>
 #include <dcl/robot/robot_node.hpp>
 #include <dcl/sim/sim_source.hpp>
@@ -53,7 +54,7 @@ SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_con
       run.nodes[r]->tick(t);
     }
   }
-  for (int extra = 1; extra <= 30; ++extra) {  // 3 s for the last answers
+  for (int extra = 1; extra <= 150; ++extra) {  // 15 s for the last answers and rounds
     run.radio->advanceTo(t + 0.1 * extra);
     for (auto& node : run.nodes) node->tick(t + 0.1 * extra);
   }
@@ -117,6 +118,39 @@ TEST(RobotNode, AcceptedLoopsMeasureTheTrueRelativePose) {
     ++checked;
   }
   EXPECT_GT(checked, 0u);
+}
+
+/// Every keyframe of every robot, placed as the robot now estimates it.
+eval::RunSummary summaryOf(const SwarmRun& run) {
+  eval::RunSummary s;
+  s.duration = 1.0;
+  for (std::size_t r = 0; r < run.nodes.size(); ++r) {
+    eval::RobotRun robot;
+    robot.name = std::string(1, static_cast<char>('a' + r));
+    for (const core::Keyframe& k : run.nodes[r]->keyframes()) {
+      robot.estimate.push_back(k.stamp, run.nodes[r]->estimate(k.id));
+      robot.odometry.push_back(k.stamp, k.T_odom_keyframe);
+    }
+    robot.ground_truth = run.ground_truth[r];
+    s.robots.push_back(std::move(robot));
+  }
+  return s;
+}
+
+TEST(RobotNode, OptimisationRoundsPutTheRobotsInOneFrame) {
+  const SwarmRun& run = defaultRun();
+  for (const auto& node : run.nodes) {
+    EXPECT_GE(node->counters().at("dgs_rounds"), 1.0) << core::robotName(node->id());
+    EXPECT_GT(node->counters().at("dgs_iterations_rotation"), 0.0);
+  }
+  // One alignment for both robots: b starts 5 m behind a, in its own
+  // odometry frame; after the rounds it is in a's frame, where it truly is.
+  const std::vector<eval::RobotMetrics> m = eval::evaluateRun(summaryOf(run));
+  for (const eval::RobotMetrics& robot : m) {
+    ASSERT_TRUE(robot.ate_rmse_joint);
+    EXPECT_LT(*robot.ate_rmse_joint, 0.3);
+    EXPECT_LT(*robot.ate_rmse, 0.3);
+  }
 }
 
 TEST(RobotNode, CountsEveryStageOfTheExchange) {

@@ -19,9 +19,21 @@
 /// consistent set. The node never waits: a silent neighbour simply sends
 /// nothing, and one that returns is caught up by the Messenger.
 ///
+/// Optimisation (Algorithm 1). Every robot announces, every few seconds, the
+/// robots it shares accepted loops with and how many; from the announcements
+/// of the robots in range each robot knows the connected group it belongs to.
+/// The lowest robot of a group starts a DGS round (backend::DgsAgent, every
+/// exchange through comm's messages) whenever the group's loops changed since
+/// its last round; the others join when its first message reaches them. The
+/// anchor's first pose stays where it is, so every member ends in the
+/// anchor's frame. A round abandoned (a member out of range, a timeout)
+/// changes nothing; a robot alone keeps its own frame. Keyframes added after
+/// a round follow the last optimised one by odometry.
+///
 /// Every decision is counted (RobotNode::counters), so a user can see why no
 /// loop was found: descriptors sent and received, candidates, verifications
-/// passed and refused by reason, loops PCM kept and rejected.
+/// passed and refused by reason, loops PCM kept and rejected, optimisation
+/// rounds finished and abandoned.
 
 #include <Eigen/Geometry>
 #include <cstdint>
@@ -31,6 +43,7 @@
 #include <string>
 #include <vector>
 
+#include <dcl/backend/dgs.hpp>
 #include <dcl/backend/pcm.hpp>
 #include <dcl/backend/pose_graph.hpp>
 #include <dcl/comm/messenger.hpp>
@@ -59,6 +72,13 @@ struct RobotConfig {
   /// against the same trajectories to decide alike.
   backend::PcmConfig pcm;
   comm::MessengerConfig messenger;  ///< heartbeats, neighbours, retransmission
+  backend::DgsConfig dgs;           ///< the distributed optimisation's stages
+  /// s between the end of one optimisation round and the start of the next.
+  double optimise_period = 5.0;
+  /// s after which a round that has not finished is abandoned.
+  double round_timeout = 30.0;
+  /// s between announcements of this robot's loop neighbours (how groups form).
+  double announce_period = 2.0;
 };
 
 /// An inter-robot loop this robot knows of, and what became of it.
@@ -92,8 +112,12 @@ class RobotNode {
   /// Every inter-robot loop known, with PCM's current verdict.
   [[nodiscard]] std::vector<InterLoop> interLoops() const;
   /// The local graph with the accepted inter-robot loops and the neighbours'
-  /// keyframes they reach: what the distributed optimisation works on.
+  /// keyframes they reach (their estimates unknown here: identity); the own
+  /// estimates are the latest (estimate()).
   [[nodiscard]] backend::PoseGraph graph() const;
+  /// Keyframe `k`'s pose T_world_keyframe in the frame of the robot's group
+  /// (its own odometry frame until a round finished).
+  [[nodiscard]] Eigen::Isometry3d estimate(core::KeyframeId k) const;
 
   /// Every decision counted, by name (see the class comment).
   [[nodiscard]] const std::map<std::string, double>& counters() const;

@@ -13,97 +13,30 @@
 #include <dcl/backend/pose_graph.hpp>
 #include <dcl/comm/messages.hpp>
 #include <dcl/io/g2o.hpp>
+#include <dcl/robot/dgs_wire.hpp>
 
-namespace dcl::comm {
+namespace dcl::robot {
 namespace {
 
 using backend::DgsMessage;
 using backend::DgsStage;
 
-OptimisationStage toWire(DgsStage stage) {
-  switch (stage) {
-    case DgsStage::idle:
-      return OptimisationStage::idle;
-    case DgsStage::rotation:
-      return OptimisationStage::rotation;
-    case DgsStage::pose:
-      return OptimisationStage::pose;
-    case DgsStage::done:
-      return OptimisationStage::done;
-  }
-  return OptimisationStage::idle;
-}
-
-DgsStage fromWire(OptimisationStage stage) {
-  switch (stage) {
-    case OptimisationStage::rotation:
-      return DgsStage::rotation;
-    case OptimisationStage::pose:
-      return DgsStage::pose;
-    case OptimisationStage::done:
-      return DgsStage::done;
-    default:
-      return DgsStage::idle;
-  }
-}
-
-DgsState stateOf(const DgsMessage& m) {
-  DgsState s;
-  s.round = m.round;
-  s.stage = toWire(m.stage);
-  s.iteration = static_cast<std::uint32_t>(m.iteration);
-  s.initialised = m.initialised;
-  s.converged = m.converged;
-  for (const auto& [robot, p] : m.progress)
-    s.progress.push_back({robot, p.iteration, p.converged_since, p.finished});
-  return s;
-}
-
 /// The message a robot would send for `m`, through encode and decode.
 DgsMessage overTheWire(const DgsMessage& m, std::size_t& bytes) {
-  Body body = stateOf(m);
-  if (!m.rotations.empty()) {
-    RotationEstimates r{stateOf(m), {}};
-    for (const auto& [key, R] : m.rotations) {
-      EXPECT_EQ(key.robot, m.from) << "a robot sends its own separators only";
-      r.rotations.emplace_back(key.keyframe, R);
-    }
-    body = std::move(r);
-  } else if (!m.poses.empty()) {
-    PoseEstimates p{stateOf(m), {}};
-    for (const auto& [key, T] : m.poses) p.poses.emplace_back(key.keyframe, T);
-    body = std::move(p);
-  }
-  Header h;
+  for (const auto& [key, R] : m.rotations)
+    EXPECT_EQ(key.robot, m.from) << "a robot sends its own separators only";
+  comm::Header h;
   h.sender = m.from;
   h.receiver = m.to;
   h.incarnation = 1;
   h.sequence = 1;
-  const std::vector<std::uint8_t> wire = encode({h, std::move(body)});
+  const std::vector<std::uint8_t> wire = comm::encode({h, robot::toWire(m)});
   bytes += wire.size();
-  const Decoded d = decode(wire);
+  const comm::Decoded d = comm::decode(wire);
   EXPECT_TRUE(d.message) << d.detail;
-
-  DgsMessage out;
-  out.from = d.message->header.sender;
-  out.to = *d.message->header.receiver;
-  const DgsState* s = std::get_if<DgsState>(&d.message->body);
-  if (const auto* r = std::get_if<RotationEstimates>(&d.message->body)) {
-    s = &r->state;
-    for (const auto& [id, R] : r->rotations) out.rotations[{out.from, id}] = R;
-  }
-  if (const auto* p = std::get_if<PoseEstimates>(&d.message->body)) {
-    s = &p->state;
-    for (const auto& [id, T] : p->poses) out.poses[{out.from, id}] = T;
-  }
-  out.stage = fromWire(s->stage);
-  out.round = s->round;
-  out.iteration = static_cast<int>(s->iteration);
-  out.initialised = s->initialised;
-  out.converged = s->converged;
-  for (const MemberProgress& p : s->progress)
-    out.progress[p.robot] = {p.iteration, p.converged_since, p.finished};
-  return out;
+  const std::optional<DgsMessage> back = robot::fromWire(*d.message);
+  EXPECT_TRUE(back);
+  return *back;
 }
 
 struct WireRun {
@@ -179,4 +112,4 @@ INSTANTIATE_TEST_SUITE_P(Graphs, DgsOverTheWire,
                                            std::pair{"sphere2500.g2o", 4}));
 
 }  // namespace
-}  // namespace dcl::comm
+}  // namespace dcl::robot
