@@ -24,6 +24,7 @@
 #include <dcl/swarm/swarm_run.hpp>
 
 #include "commands.hpp"
+#include "run_swarm.hpp"
 
 namespace dcl::apps {
 namespace {
@@ -154,19 +155,20 @@ Json metricsJson(const eval::RunSummary& s, const std::vector<eval::RobotMetrics
           {"robots", robots}};
 }
 
-void writeOutputs(const RunOptions& o, const eval::RunSummary& s, const swarm::SwarmResult& result,
-                  const Json& metrics, const std::vector<eval::RobotMetrics>& robot_metrics) {
+void writeOutputs(const std::string& out, const eval::RunSummary& s,
+                  const swarm::SwarmResult& result, const Json& metrics,
+                  const std::vector<eval::RobotMetrics>& robot_metrics) {
   for (std::size_t r = 0; r < s.robots.size(); ++r) {
-    const std::string folder = o.out + "/" + s.robots[r].name;
+    const std::string folder = out + "/" + s.robots[r].name;
     std::filesystem::create_directories(folder);
     io::writeTumPoses(folder + "/trajectory.tum", s.robots[r].estimate);
     io::writeKittiPoses(folder + "/trajectory.kitti", s.robots[r].estimate, folder + "/times.txt");
     io::writeTumPoses(folder + "/odometry.tum", s.robots[r].odometry);
     io::writeG2o(folder + "/graph.g2o", backend::toG2o(result.robots[r].graph));
   }
-  io::writeFileAtomic(o.out + "/metrics.json",
+  io::writeFileAtomic(out + "/metrics.json",
                       [&](std::ostream& out) { out << metrics.dump(2) << "\n"; });
-  io::writeFileAtomic(o.out + "/report.html",
+  io::writeFileAtomic(out + "/report.html",
                       [&](std::ostream& out) { out << eval::reportHtml(s, robot_metrics); });
 }
 
@@ -174,7 +176,9 @@ std::string metres(const Json& value) {
   return value.is_null() ? "-" : fmt::format("{:.3f}", value.get<double>());
 }
 
-void printSummary(const Json& m, const std::string& out) {
+}  // namespace
+
+void printRunTable(const Json& m, const std::string& out) {
   fmt::print("{:<6} {:>7} {:>9} {:>10} {:>10} {:>6} {:>12} {:>10}\n", "robot", "frames",
              "keyframes", "ATE (m)", "odometry", "intra", "inter kept", "kB sent");
   for (const Json& r : m["robots"]) {
@@ -190,7 +194,9 @@ void printSummary(const Json& m, const std::string& out) {
   fmt::print("outputs in {} (metrics.json, report.html, one folder per robot)\n", out);
 }
 
-Json runDataset(const RunOptions& o, const AppConfig& config) {
+Json runSwarmDataset(const std::string& dataset, const std::string& out, std::size_t max_frames,
+                     int threads, const AppConfig& config) {
+  const RunOptions o{dataset, out, max_frames, threads, false};
   const io::DatasetSpec spec = io::readDataset(o.dataset);
   std::vector<swarm::SwarmMember> members = membersOf(spec);
   std::vector<core::Trajectory> truths;
@@ -215,11 +221,9 @@ Json runDataset(const RunOptions& o, const AppConfig& config) {
   const eval::RunSummary summary = summaryOf(spec, result, truths, config.radio.meter_interval);
   const std::vector<eval::RobotMetrics> metrics = eval::evaluateRun(summary);
   const Json m = metricsJson(summary, metrics, result);
-  writeOutputs(o, summary, result, m, metrics);
+  writeOutputs(o.out, summary, result, m, metrics);
   return m;
 }
-
-}  // namespace
 
 void addRunCommand(CLI::App& app, const AppConfig& config) {
   auto o = std::make_shared<RunOptions>();
@@ -237,9 +241,9 @@ void addRunCommand(CLI::App& app, const AppConfig& config) {
   cmd->add_flag("--json", o->json, "print metrics.json instead of the table");
   cmd->callback([o, &config] {
     if (o->threads < 0) throw core::Error("--threads must be at least 0");
-    const Json m = runDataset(*o, config);
+    const Json m = runSwarmDataset(o->dataset, o->out, o->max_frames, o->threads, config);
     if (o->json) return fmt::print("{}\n", m.dump(2));
-    printSummary(m, o->out);
+    printRunTable(m, o->out);
   });
 }
 

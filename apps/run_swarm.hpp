@@ -1,0 +1,25 @@
+#pragma once
+
+// A whole swarm run over the simulated radio and its outputs, shared by
+// `dcl-slam run` and `dcl-slam demo` (cmd_run.cpp).
+
+#include <cstddef>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "app_config.hpp"
+
+namespace dcl::apps {
+
+/// Runs every robot of the dataset in `dataset` over the simulated radio
+/// (scans per robot at most `max_frames`, 0: all; `threads` 0: every core),
+/// writes the outputs into `out` and returns metrics.json.
+nlohmann::ordered_json runSwarmDataset(const std::string& dataset, const std::string& out,
+                                       std::size_t max_frames, int threads,
+                                       const AppConfig& config);
+
+/// The per-robot table of a run's metrics.
+void printRunTable(const nlohmann::ordered_json& metrics, const std::string& out);
+
+}  // namespace dcl::apps
