@@ -5,6 +5,8 @@
 #include <string>
 #include <utility>
 
+#include <spdlog/spdlog.h>
+
 #include <dcl/backend/pcm_trajectory.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/place/descriptor_codec.hpp>
@@ -405,15 +407,20 @@ struct RobotNode::Impl {
         Round{number, members, backend::DgsAgent(self, roundGraph(members), config.dgs), now});
     round->agent.startRound(members, number);
     last_signature = signature(members);
+    spdlog::debug("robot {}: t {:.1f}: joins round {} of {} robots", core::robotName(self), now,
+                  number, members.size());
     count("dgs_rounds_joined");
   }
 
+  /// Abandons the round; the group tries again when it is whole (its loops unchanged or not).
   void leave(const char* why) {
     round->agent.abortRound();
     finished.insert(round->number);
     round.reset();
     last_round_end = now;
+    last_signature.clear();
     count(why);
+    spdlog::debug("robot {}: t {:.1f}: leaves its round ({})", core::robotName(self), now, why);
   }
 
   void onDgs(const backend::DgsMessage& m) {

@@ -66,6 +66,7 @@ TEST(SwarmRun, TheSameRunOnOneOrTwoThreadsGivesTheSameResult) {
 TEST(SwarmRun, KeepsGoingWhenTheRadioLosesMessages) {
   SwarmConfig lossy;
   lossy.radio.drop_rate = 0.3;
+  lossy.drain = 15.0;  // time for the re-sends of the last descriptors
   const SwarmResult result = run(2, lossy);
   for (const MemberResult& m : result.robots) {
     EXPECT_EQ(m.frames, 120u);

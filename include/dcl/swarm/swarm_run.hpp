@@ -28,7 +28,8 @@ namespace dcl::swarm {
 struct SwarmConfig {
   robot::RobotConfig robot;    ///< every robot's
   comm::SimRadioConfig radio;  ///< range, bandwidth, latency, losses
-  double step = 0.1;           ///< s of simulated time per step (a 10 Hz LiDAR's period)
+  double step =
+      0.02;  ///< s of simulated time per step: scans play at their stamps, messages move every step
   double drain = 5.0;          ///< s the radio keeps running after the last scan
   std::size_t max_frames = 0;  ///< scans per robot at most (0: all)
   int threads = 0;             ///< robots processed at once (0: every core)
