@@ -426,7 +426,7 @@ std::size_t colouredPixels(const io::Image& image) {
 }
 
 TEST(RunReport, RendersInHeadlessChromium) {
-  if (!haveChromium()) GTEST_SKIP() << "chromium is not installed (scripts/setup installs it)";
+  ASSERT_TRUE(haveChromium()) << "chromium is not installed (scripts/setup installs it)";
   const fs::path dir = fs::temp_directory_path() / ("dcl_run_report_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   const RunSummary run = hostileNames();
