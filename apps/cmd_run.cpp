@@ -57,8 +57,8 @@ std::vector<swarm::SwarmMember> membersOf(const io::DatasetSpec& spec) {
   for (std::size_t r = 0; r < spec.robots.size(); ++r) {
     core::Trajectory truth;
     if (!spec.robots[r].ground_truth.empty()) truth = io::readGroundTruth(spec, r);
-    members.push_back(
-        {spec.robots[r].name, std::move(scans[r]), spec.robots[r].start_time, std::move(truth)});
+    members.push_back({spec.robots[r].name, std::move(scans[r]), spec.robots[r].start_time,
+                       std::move(truth), std::nullopt});
   }
   return members;
 }

@@ -73,8 +73,9 @@ struct Member {
     return spec.start_time + spec.scans->stamp(i);
   }
 
-  /// Plays the scans due by `time`, then handles what arrived.
+  /// Plays the scans due by `time`, then handles what arrived; nothing once it has left.
   void step(double time) {
+    if (spec.leave_time && time >= *spec.leave_time) return;
     while (next < frames && swarmTime(next) <= time) {
       node->addScan(spec.scans->stamp(next), spec.scans->scan(next));
       ++next;
@@ -150,7 +151,7 @@ SwarmResult runSwarm(std::vector<SwarmMember> members, const SwarmConfig& config
         radio.setPosition(core::RobotId(static_cast<std::uint8_t>(r)), T->translation());
     }
     radio.advanceTo(time);
-    for (Member& m : robots) m.transport->fetch();
+    for (Member& m : robots) m.transport->fetch();  // a robot that left hears nothing either
     arena.execute([&] {
       tbb::parallel_for(std::size_t{0}, robots.size(),
                         [&](std::size_t r) { robots[r].step(time); });

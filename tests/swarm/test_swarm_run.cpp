@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <dcl/core/error.hpp>
+#include <dcl/eval/ate.hpp>
 #include <dcl/swarm/swarm_run.hpp>
 
 #include "../common/sim_convoy.hpp"
@@ -24,7 +25,7 @@ std::vector<SwarmMember> members(const test::Convoy& data) {
   std::vector<std::unique_ptr<io::ScanSource>> scans = sim::openDatasetScans(data.spec);
   for (std::size_t r = 0; r < scans.size(); ++r) {
     out.push_back({data.spec.robots[r].name, std::move(scans[r]), data.spec.robots[r].start_time,
-                   io::readGroundTruth(data.spec, r)});
+                   io::readGroundTruth(data.spec, r), std::nullopt});
   }
   return out;
 }
@@ -77,6 +78,30 @@ TEST(SwarmRun, KeepsGoingWhenTheRadioLosesMessages) {
             static_cast<double>(result.robots[1].keyframes.size()));
   EXPECT_EQ(result.robots[1].counters.at("descriptors_received"),
             static_cast<double>(result.robots[0].keyframes.size()));
+}
+
+TEST(SwarmRun, TheOthersFinishWhenARobotLeavesMidRun) {
+  std::vector<SwarmMember> m = members(convoy());
+  m[1].leave_time = 6.0;  // robot b stops 6 s in, without a word
+  SwarmConfig config;
+  config.max_frames = 150;
+  config.drain = 10.0;
+  const SwarmResult result = runSwarm(std::move(m), config);
+  const MemberResult& a = result.robots[0];
+  const MemberResult& b = result.robots[1];
+  EXPECT_EQ(a.frames, 150u);
+  EXPECT_LT(b.frames, 70u);
+  EXPECT_GT(a.keyframes.size(), b.keyframes.size());
+  // Robot a's map stays consistent: none of its keyframes lost, each where
+  // its odometry, loops and finished rounds put it, within 0.3 m of the truth.
+  ASSERT_EQ(a.keyframes.size(), static_cast<std::size_t>(a.counters.at("keyframes")));
+  core::Trajectory estimate;
+  for (const core::Keyframe& k : a.keyframes)
+    estimate.push_back(k.stamp, a.graph.estimate({core::RobotId(0), k.id}));
+  const eval::AteResult ate =
+      eval::computeAte(estimate, members(convoy())[0].ground_truth);  // SE(3)-aligned
+  EXPECT_LT(ate.translation_m.rmse, 0.3);
+  EXPECT_FALSE(a.counters.contains("dgs_ignored"));
 }
 
 TEST(SwarmRun, RefusesWhatItCannotRun) {

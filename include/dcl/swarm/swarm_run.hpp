@@ -42,6 +42,9 @@ struct SwarmMember {
   std::unique_ptr<io::ScanSource> scans;
   double start_time = 0.0;        ///< s on the swarm clock
   core::Trajectory ground_truth;  ///< T_world_sensor, stamps since its own start
+  /// s on the swarm clock at which the robot leaves the swarm for good (a
+  /// crash, a dead battery): from then on it takes no scan and says nothing.
+  std::optional<double> leave_time;
 };
 
 /// What a run leaves of one robot.
