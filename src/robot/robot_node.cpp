@@ -322,8 +322,9 @@ struct RobotNode::Impl {
   }
 
   [[nodiscard]] std::uint32_t acceptedLoops() const {
-    return static_cast<std::uint32_t>(
-        counters.contains("inter_loops_accepted") ? counters.at("inter_loops_accepted") : 0.0);
+    std::size_t accepted = 0;
+    for (const auto& [robot, n] : neighbours) accepted += n.accepted.size();
+    return static_cast<std::uint32_t>(accepted);
   }
 
   /// Tells everyone in range which robots this one shares loops with.
