@@ -20,10 +20,6 @@ namespace {
 using comm::Body;
 using comm::Message;
 
-core::RobotId lower(core::RobotId a, core::RobotId b) {
-  return std::min(a, b);
-}
-
 /// "rejected_low_inlier_share", ... for the counters.
 std::string refusalCounter(comm::LoopStatus status) {
   static constexpr const char* kNames[] = {"verified",
@@ -178,7 +174,7 @@ struct RobotNode::Impl {
   Neighbour& neighbour(core::RobotId robot) {
     auto it = neighbours.find(robot);
     if (it != neighbours.end()) return it->second;
-    const core::RobotId a = lower(self, robot);
+    const core::RobotId a = std::min(self, robot);
     const core::RobotId b = a == self ? robot : self;
     it = neighbours.emplace(robot, Neighbour(backend::PairwiseConsistency(a, b, config.pcm))).first;
     addOwnChain(it->second.pcm);
