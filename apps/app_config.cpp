@@ -1,7 +1,10 @@
 #include "app_config.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <functional>
+#include <utility>
 
 #include <dcl/core/error.hpp>
 #include <dcl/core/log.hpp>
@@ -28,6 +31,28 @@ std::string defaultDataDir() {
   return DCL_DEFAULT_DATA_DIR;
 }
 
+robot::RobotConfig robotConfig(const AppConfig& c) {
+  robot::RobotConfig r;
+  r.odometry = c.odometry;
+  r.mapper = c.mapper;
+  r.descriptor = c.place.descriptor;
+  r.index = c.place.evaluation.index;
+  r.verification = c.verification;
+  r.pcm = c.pcm;
+  r.messenger = c.messenger;
+  r.dgs = c.dgs;
+  r.dgs.max_rotation_iterations = std::min(r.dgs.max_rotation_iterations, c.robot.dgs_steps);
+  r.dgs.max_pose_iterations = std::min(r.dgs.max_pose_iterations, c.robot.dgs_steps);
+  r.refine = c.refine;
+  r.refine.max_rounds = c.robot.refine_steps;
+  r.loop_sigma_translation = c.robot.loop_sigma_translation;
+  r.loop_sigma_rotation = c.robot.loop_sigma_rotation;
+  r.optimise_period = c.robot.optimise_period;
+  r.round_timeout = c.robot.round_timeout;
+  r.announce_period = c.robot.announce_period;
+  return r;
+}
+
 void validate(const AppConfig& config, const std::string& source) {
   checkField(source, "log_level", [&] { core::setLogLevel(config.log_level); });
   const EvalSection& e = config.eval;
@@ -52,6 +77,28 @@ void validate(const AppConfig& config, const std::string& source) {
   checkField(source, "messenger", [&] { comm::validate(config.messenger); });
   checkField(source, "radio", [&] { comm::validate(config.radio); });
   checkField(source, "dds", [&] { comm::validate(config.dds); });
+  checkField(source, "map", [&] { swarm::validate(config.map); });
+  checkField(source, "robot.dgs_steps", [&] {
+    if (config.robot.dgs_steps < 1) throw core::Error("must be at least 1");
+  });
+  checkField(source, "robot.refine_steps", [&] {
+    if (config.robot.refine_steps < 0) throw core::Error("must be at least 0");
+  });
+  for (const auto& [key, value] :
+       {std::pair{"robot.loop_sigma_translation", config.robot.loop_sigma_translation},
+        std::pair{"robot.loop_sigma_rotation", config.robot.loop_sigma_rotation}}) {
+    checkField(source, key, [value] {
+      if (!(value >= 0.0) || !std::isfinite(value)) throw core::Error("must be finite and >= 0");
+    });
+  }
+  for (const auto& [key, value] :
+       {std::pair{"robot.optimise_period", config.robot.optimise_period},
+        std::pair{"robot.round_timeout", config.robot.round_timeout},
+        std::pair{"robot.announce_period", config.robot.announce_period}}) {
+    checkField(source, key, [value] {
+      if (!(value > 0.0) || !std::isfinite(value)) throw core::Error("must be a finite number > 0");
+    });
+  }
   checkField(source, "pcm.threshold", [&] {
     if (!(config.pcm.threshold > 0.0)) throw core::Error("must be positive");
   });

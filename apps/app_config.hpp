@@ -19,6 +19,8 @@
 #include <dcl/place/descriptor.hpp>
 #include <dcl/place/evaluation.hpp>
 #include <dcl/registration/verification.hpp>
+#include <dcl/robot/robot_node.hpp>
+#include <dcl/swarm/merged_map.hpp>
 
 namespace dcl::apps {
 
@@ -57,6 +59,37 @@ struct PlaceSection {
   }
 };
 
+/// A robot node's own timers (robot::RobotConfig's fields outside the modules' sections).
+struct RobotSection {
+  double optimise_period = 5.0;  ///< s between the end of one optimisation round and the next
+  double round_timeout = 30.0;   ///< s after which an unfinished round is abandoned
+  double announce_period = 2.0;  ///< s between announcements of the robot's loop neighbours
+  /// Refinement steps after DGS in each optimisation round at most (the
+  /// `refine` section's other fields apply; 0: DGS alone).
+  int refine_steps = 50;
+  /// DGS steps per stage at most in each optimisation round (the `dgs`
+  /// section's caps are for whole offline graphs): the refinement goes on from
+  /// wherever DGS stopped, and a round must end while the group is together.
+  int dgs_steps = 100;
+  double loop_sigma_translation = 0.02;  ///< m, added to every verified loop's covariance
+  double loop_sigma_rotation = 0.0035;   ///< rad, likewise
+
+  template <class Visitor>
+  void visit(Visitor& v) {
+    v.field("optimise_period", optimise_period,
+            "s between the end of one optimisation round and the start of the next");
+    v.field("round_timeout", round_timeout, "s after which an unfinished round is abandoned");
+    v.field("announce_period", announce_period,
+            "s between announcements of the robot's loop neighbours (how groups form)");
+    v.field("refine_steps", refine_steps,
+            "refinement steps after DGS in each optimisation round at most (0: DGS alone)");
+    v.field("dgs_steps", dgs_steps, "DGS steps per stage in each optimisation round at most");
+    v.field("loop_sigma_translation", loop_sigma_translation,
+            "m, noise added to every verified loop (the registration's covariance is optimistic)");
+    v.field("loop_sigma_rotation", loop_sigma_rotation, "rad, likewise");
+  }
+};
+
 /// Everything `dcl-slam` can be configured with.
 struct AppConfig {
   std::string log_level = "info";                 ///< trace | debug | info | warn | error | off
@@ -72,6 +105,8 @@ struct AppConfig {
   comm::MessengerConfig messenger;                ///< neighbours, heartbeats, retransmission
   comm::SimRadioConfig radio;                     ///< the simulated radio of swarm runs
   comm::DdsConfig dds;                            ///< Cyclone DDS between robot processes
+  RobotSection robot;                             ///< a robot node's timers
+  swarm::MapConfig map;                           ///< the map of swarm runs
 
   template <class Visitor>
   void visit(Visitor& v) {
@@ -88,12 +123,17 @@ struct AppConfig {
     v.section("messenger", messenger, "neighbours, heartbeats and retransmission between robots");
     v.section("radio", radio, "the simulated radio of swarm runs in one process");
     v.section("dds", dds, "Cyclone DDS between robot processes");
+    v.section("robot", robot, "a robot node's optimisation timers");
+    v.section("map", map, "the map of swarm runs (map.ply)");
   }
 };
 
 /// The shared data folder (KITTI ground truth, test data): the DCL_DATA_DIR
 /// environment variable, else the folder configured at build time.
 std::string defaultDataDir();
+
+/// A robot node's configuration: the modules' sections and the robot's timers.
+robot::RobotConfig robotConfig(const AppConfig& config);
 
 /// Checks the values the YAML types cannot (names from a fixed set, ranges);
 /// throws core::FileError naming `source` and the dotted key.

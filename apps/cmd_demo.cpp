@@ -2,8 +2,8 @@
 // `demo` preset (three robots on a generated campus, VLP-16), runs the whole
 // swarm over the simulated radio as `dcl-slam run` does, prints a table per
 // robot (ATE by odometry alone and with collaboration, loops, bytes sent) and
-// writes the outputs: the dataset and its preview, trajectories, graphs,
-// metrics.json and report.html.
+// writes the outputs: the dataset and its preview, trajectories, graphs, the
+// merged map, metrics.json and report.html.
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -68,7 +68,8 @@ void runDemo(const DemoOptions& o, const AppConfig& config) {
   const std::string dataset = simulate(o.out);
   const Json metrics = runSwarmDataset(dataset, o.out, 0, o.threads, config);
   printTable(metrics);
-  fmt::print("outputs in {}: report.html, metrics.json, one folder per robot\n", o.out);
+  fmt::print("outputs in {}: report.html, {}metrics.json, one folder per robot\n", o.out,
+             metrics["map_points"].get<std::size_t>() > 0 ? "map.ply (robots coloured), " : "");
 }
 
 }  // namespace

@@ -30,6 +30,8 @@
 #include <dcl/core/error.hpp>
 
 #include "commands.hpp"
+#include "process.hpp"
+#include "robot_outputs.hpp"
 
 namespace dcl::apps {
 
@@ -55,54 +57,7 @@ struct PingOptions {
   bool json = false;
 };
 
-// ---- signals ---------------------------------------------------------------
-
-volatile std::sig_atomic_t g_stop = 0;
-
-extern "C" void onStopSignal(int /*signal*/) {
-  g_stop = 1;
-}
-
-/// SIGINT and SIGTERM end the run early (the summary is still printed) for
-/// as long as this lives; the previous handlers come back after.
-class StopSignals {
- public:
-  StopSignals()
-      : previous_int_(std::signal(SIGINT, onStopSignal)),
-        previous_term_(std::signal(SIGTERM, onStopSignal)) {
-    g_stop = 0;
-  }
-  ~StopSignals() {
-    std::signal(SIGINT, previous_int_);
-    std::signal(SIGTERM, previous_term_);
-  }
-  StopSignals(const StopSignals&) = delete;
-  StopSignals& operator=(const StopSignals&) = delete;
-
- private:
-  using Handler = void (*)(int);
-  Handler previous_int_;
-  Handler previous_term_;
-};
-
-// ---- incarnation and payload -------------------------------------------------
-
-/// The default incarnation: tenths of a second since 2024-01-01 00:00 UTC.
-/// A restart takes far longer than 0.1 s (joining DDS alone does), so each
-/// life of a robot gets a larger number than the last, and the count fits
-/// uint32 until August 2037. A robot whose clock may step back should pass
-/// --incarnation from a counter of its own instead.
-std::uint32_t clockIncarnation() {
-  using Tenths = std::chrono::duration<std::int64_t, std::deci>;
-  const std::chrono::sys_days epoch{std::chrono::year{2024} / 1 / 1};
-  const std::int64_t tenths =
-      std::chrono::duration_cast<Tenths>(std::chrono::system_clock::now() - epoch).count();
-  if (tenths < 1 || tenths > std::numeric_limits<std::uint32_t>::max())
-    throw core::Error(
-        "the system clock is outside 2024-01-01..2037-08: cannot derive an incarnation from it, "
-        "pass --incarnation");
-  return static_cast<std::uint32_t>(tenths);
-}
+// ---- payload -----------------------------------------------------------------
 
 /// The text of test message `number`: it names its robot and the run's count,
 /// so a receiver can tell a test message from a SLAM robot's descriptor and
@@ -302,7 +257,8 @@ struct PingRun {
 
   /// Runs until --duration or a signal; returns the seconds it ran.
   double run() {
-    for (double now = since(start); now < options.duration && g_stop == 0; now = since(start)) {
+    for (double now = since(start); now < options.duration && stopSignal() == 0;
+         now = since(start)) {
       sendDue(now);
       take(now);
       sleep(now);
@@ -366,7 +322,7 @@ Json summary(const PingRun& r, double seconds) {
           {"domain", r.options.dds.domain},
           {"started_at", r.started_at},
           {"duration", seconds},
-          {"interrupted", g_stop != 0},
+          {"interrupted", stopSignal() != 0},
           {"messages", r.options.messages},
           {"neighbours", robotList(r.log.heard)},
           {"present", robotList(r.messenger.neighbours())},

@@ -1,11 +1,11 @@
 // `dcl-slam run`: every robot of a dataset in one process over the simulated
-// radio (swarm::runSwarm), then the outputs of DESIGN.md §3: per-robot
-// trajectories (TUM, KITTI), odometry and graph, metrics.json and report.html.
+// radio (swarm::runSwarm), with a progress line per robot on a terminal, then
+// the outputs of DESIGN.md §3: per-robot trajectories (TUM, KITTI), odometry,
+// graph and map, the merged map coloured by robot, metrics.json and report.html.
 #include <algorithm>
-#include <chrono>
+#include <array>
 #include <filesystem>
 #include <memory>
-#include <numeric>
 #include <string>
 #include <vector>
 
@@ -19,8 +19,11 @@
 #include <dcl/io/dataset.hpp>
 #include <dcl/io/file.hpp>
 #include <dcl/io/g2o.hpp>
+#include <dcl/io/ply.hpp>
 #include <dcl/io/pose_file.hpp>
 #include <dcl/sim/sim_source.hpp>
+#include <dcl/swarm/merged_map.hpp>
+#include <dcl/swarm/swarm_progress.hpp>
 #include <dcl/swarm/swarm_run.hpp>
 
 #include "commands.hpp"
@@ -38,18 +41,6 @@ struct RunOptions {
   int threads = 0;             ///< 0: every core
   bool json = false;
 };
-
-robot::RobotConfig robotConfig(const AppConfig& c) {
-  robot::RobotConfig r;
-  r.odometry = c.odometry;
-  r.mapper = c.mapper;
-  r.descriptor = c.place.descriptor;
-  r.index = c.place.evaluation.index;
-  r.verification = c.verification;
-  r.pcm = c.pcm;
-  r.messenger = c.messenger;
-  return r;
-}
 
 std::vector<swarm::SwarmMember> membersOf(const io::DatasetSpec& spec) {
   std::vector<std::unique_ptr<io::ScanSource>> scans = sim::openDatasetScans(spec);
@@ -126,8 +117,53 @@ Json optionalJson(const std::optional<double>& value) {
   return value ? Json(*value) : Json(nullptr);
 }
 
+/// Each robot's map and all of them merged; empty when the run kept no map.
+struct Maps {
+  double voxel = 0.0;  ///< m
+  std::vector<swarm::VoxelMap> robots;
+  swarm::VoxelMap merged;
+};
+
+/// The keyframe clouds at the keyframes' final estimates (the trajectories' poses).
+Maps buildMaps(const eval::RunSummary& s, const swarm::SwarmResult& result, double voxel) {
+  Maps maps;
+  maps.voxel = voxel;
+  if (voxel <= 0.0) return maps;
+  for (std::size_t r = 0; r < result.robots.size(); ++r) {
+    const swarm::KeyframeClouds& clouds = result.robots[r].map_clouds;
+    std::vector<Eigen::Isometry3d> poses;
+    for (std::size_t k = 0; k < clouds.size(); ++k) poses.push_back(s.robots[r].estimate.pose(k));
+    maps.robots.push_back(swarm::robotMap(clouds, poses, static_cast<std::uint8_t>(r)));
+  }
+  maps.merged = swarm::mergeMaps(maps.robots, voxel);
+  return maps;
+}
+
+/// The report's robot colours (eval/run_report.cpp), so that the map and the
+/// plots agree: no green or red, no grey.
+io::Rgb robotColour(std::size_t robot) {
+  static constexpr std::array<io::Rgb, 10> kPalette = {{{0x1f, 0x77, 0xb4},
+                                                        {0xff, 0x7f, 0x0e},
+                                                        {0x94, 0x67, 0xbd},
+                                                        {0x8c, 0x56, 0x4b},
+                                                        {0xe3, 0x77, 0xc2},
+                                                        {0x17, 0xbe, 0xcf},
+                                                        {0xbc, 0xbd, 0x22},
+                                                        {0x39, 0x3b, 0x79},
+                                                        {0x7b, 0x41, 0x73},
+                                                        {0x8c, 0x6d, 0x31}}};
+  return kPalette[robot % kPalette.size()];
+}
+
+void writeMap(const std::string& path, const swarm::VoxelMap& map) {
+  std::vector<io::Rgb> colours;
+  colours.reserve(map.size());
+  for (const std::uint8_t r : map.robots) colours.push_back(robotColour(r));
+  io::writeColouredPly(path, map.points, colours);
+}
+
 Json metricsJson(const eval::RunSummary& s, const std::vector<eval::RobotMetrics>& metrics,
-                 const swarm::SwarmResult& result) {
+                 const swarm::SwarmResult& result, const Maps& maps) {
   Json robots = Json::array();
   for (std::size_t r = 0; r < s.robots.size(); ++r) {
     const eval::RobotRun& run = s.robots[r];
@@ -147,16 +183,20 @@ Json metricsJson(const eval::RunSummary& s, const std::vector<eval::RobotMetrics
                       {"intra_loops", run.intra_loops},
                       {"inter_loops_accepted", run.inter_loops_accepted},
                       {"inter_loops_rejected", run.inter_loops_rejected},
+                      {"map_points", maps.robots.empty() ? 0 : maps.robots[r].size()},
+                      {"map_cloud_bytes", result.robots[r].map_clouds.bytes()},
                       {"counters", run.counters}});
   }
   return {{"dataset", s.dataset},
           {"duration_s", s.duration},
           {"radio_events", result.radio_events},
+          {"map_voxel_m", maps.voxel},
+          {"map_points", maps.merged.size()},
           {"robots", robots}};
 }
 
 void writeOutputs(const std::string& out, const eval::RunSummary& s,
-                  const swarm::SwarmResult& result, const Json& metrics,
+                  const swarm::SwarmResult& result, const Maps& maps, const Json& metrics,
                   const std::vector<eval::RobotMetrics>& robot_metrics) {
   for (std::size_t r = 0; r < s.robots.size(); ++r) {
     const std::string folder = out + "/" + s.robots[r].name;
@@ -165,11 +205,28 @@ void writeOutputs(const std::string& out, const eval::RunSummary& s,
     io::writeKittiPoses(folder + "/trajectory.kitti", s.robots[r].estimate, folder + "/times.txt");
     io::writeTumPoses(folder + "/odometry.tum", s.robots[r].odometry);
     io::writeG2o(folder + "/graph.g2o", backend::toG2o(result.robots[r].graph));
+    if (!maps.robots.empty()) writeMap(folder + "/map.ply", maps.robots[r]);
   }
+  if (!maps.robots.empty()) writeMap(out + "/map.ply", maps.merged);
   io::writeFileAtomic(out + "/metrics.json",
                       [&](std::ostream& out) { out << metrics.dump(2) << "\n"; });
   io::writeFileAtomic(out + "/report.html",
                       [&](std::ostream& out) { out << eval::reportHtml(s, robot_metrics); });
+}
+
+/// The run, with a line per robot redrawn on a terminal (nothing otherwise).
+swarm::SwarmResult runWithProgress(std::vector<swarm::SwarmMember> members,
+                                   const swarm::SwarmConfig& config, const std::string& label) {
+  core::ProgressBoard board;
+  swarm::SwarmStatus last;
+  swarm::SwarmResult result =
+      swarm::runSwarm(std::move(members), config, [&](const swarm::SwarmStatus& status) {
+        if (!board.enabled()) return;
+        last = status;
+        if (board.due()) board.draw(swarm::progressLines(label, status, board.elapsed()));
+      });
+  board.finish(swarm::progressLines(label, last, board.elapsed()));
+  return result;
 }
 
 std::string metres(const Json& value) {
@@ -191,7 +248,8 @@ void printRunTable(const Json& m, const std::string& out) {
         r["inter_loops_accepted"].get<std::size_t>() + r["inter_loops_rejected"].get<std::size_t>(),
         static_cast<double>(r["bytes_sent"].get<std::size_t>()) / 1000.0);
   }
-  fmt::print("outputs in {} (metrics.json, report.html, one folder per robot)\n", out);
+  fmt::print("outputs in {} ({}metrics.json, report.html, one folder per robot)\n", out,
+             m["map_points"].get<std::size_t>() > 0 ? "map.ply, " : "");
 }
 
 Json runSwarmDataset(const std::string& dataset, const std::string& out, std::size_t max_frames,
@@ -201,27 +259,21 @@ Json runSwarmDataset(const std::string& dataset, const std::string& out, std::si
   std::vector<swarm::SwarmMember> members = membersOf(spec);
   std::vector<core::Trajectory> truths;
   for (const swarm::SwarmMember& m : members) truths.push_back(m.ground_truth);
-  std::size_t total = 0;
-  for (const swarm::SwarmMember& m : members)
-    total += o.max_frames > 0 ? std::min(o.max_frames, m.scans->size()) : m.scans->size();
 
   swarm::SwarmConfig sc;
   sc.robot = robotConfig(config);
   sc.radio = config.radio;
   sc.max_frames = o.max_frames;
   sc.threads = o.threads;
-  core::ProgressBar progress("run " + (spec.name.empty() ? o.dataset : spec.name), total, "frames");
-  const swarm::SwarmResult result = swarm::runSwarm(
-      std::move(members), sc, [&](double time, const std::vector<std::size_t>& done) {
-        progress.update(std::accumulate(done.begin(), done.end(), std::size_t{0}),
-                        fmt::format("t = {:.0f} s", time));
-      });
-  progress.finish();
+  sc.map = config.map;
+  const swarm::SwarmResult result =
+      runWithProgress(std::move(members), sc, "run " + (spec.name.empty() ? o.dataset : spec.name));
 
   const eval::RunSummary summary = summaryOf(spec, result, truths, config.radio.meter_interval);
   const std::vector<eval::RobotMetrics> metrics = eval::evaluateRun(summary);
-  const Json m = metricsJson(summary, metrics, result);
-  writeOutputs(o.out, summary, result, m, metrics);
+  const Maps maps = buildMaps(summary, result, sc.map.voxel);
+  const Json m = metricsJson(summary, metrics, result, maps);
+  writeOutputs(o.out, summary, result, maps, m, metrics);
   return m;
 }
 
@@ -231,7 +283,8 @@ void addRunCommand(CLI::App& app, const AppConfig& config) {
       "run",
       "every robot of a dataset in one process over the simulated radio (range, bandwidth, "
       "latency and losses from the config's radio section), in lock-step simulated time, "
-      "deterministic; writes trajectories, graphs, metrics.json and report.html");
+      "deterministic; writes trajectories, graphs, maps (map.ply: all robots, coloured), "
+      "metrics.json and report.html");
   cmd->add_option("--dataset", o->dataset, "dataset folder (dataset.yaml)")->required();
   cmd->add_option("--out", o->out, "output folder")->capture_default_str();
   cmd->add_option("--max-frames", o->max_frames, "scans per robot at most (0: all)")

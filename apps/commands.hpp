@@ -56,4 +56,15 @@ void addRunCommand(CLI::App& app, const AppConfig& config);
 /// `bench loops`: the inter-robot loop pipeline end to end, graded by ground truth (cmd_loops.cpp).
 void addBenchLoopsCommand(CLI::App& bench, const AppConfig& config);
 
+/// `robot`: one robot of a dataset in this process over Cyclone DDS (cmd_robot.cpp).
+void addRobotCommand(CLI::App& app, const AppConfig& config);
+
+/// `swarm`: starts one `robot` process per robot of a dataset on this machine,
+/// waits for them and evaluates their outputs together (cmd_swarm.cpp).
+void addSwarmCommand(CLI::App& app, const AppConfig& config);
+
+/// `bench system`: the paper's experiments (its Tables II-V and the 9-robot
+/// run) on simulated datasets (cmd_system.cpp).
+void addBenchSystemCommand(CLI::App& bench, const AppConfig& config);
+
 }  // namespace dcl::apps

@@ -60,12 +60,15 @@ int run(int argc, char** argv) {
   dcl::apps::addPgoCommand(app, config);
   dcl::apps::addPingCommand(app, config);
   dcl::apps::addRunCommand(app, config);
+  dcl::apps::addRobotCommand(app, config);
+  dcl::apps::addSwarmCommand(app, config);
   auto* bench = app.add_subcommand("bench", "benchmarks of the system's parts");
   bench->require_subcommand(1);
   dcl::apps::addBenchSimCommand(*bench);
   dcl::apps::addBenchOdometryCommand(*bench, config);
   dcl::apps::addBenchPlaceCommand(*bench, config);
   dcl::apps::addBenchLoopsCommand(*bench, config);
+  dcl::apps::addBenchSystemCommand(*bench, config);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -48,7 +48,7 @@ std::vector<comm::Body> bodies(const std::vector<std::uint8_t>& descriptor,
                              7,     true,
                              false, false,
                              0.05F, {{RobotId(0), 7, 5, false}, {RobotId(1), 6, -1, false}}};
-  comm::PoseEstimates poses{state, {{KeyframeId(5), T}}};
+  comm::PoseEstimates poses{state, {{KeyframeId(5), T}}, false};
   comm::RotationEstimates rotations{state, {{KeyframeId(5), T.rotation()}}};
   return {comm::Heartbeat{2.5, 40, {{RobotId(0), 1, 12, 3}}},
           comm::DescriptorMessage{KeyframeId(4), 3.0, descriptor,

@@ -80,7 +80,8 @@ struct RefineAgent::Impl {
   PoseMap kept_before;
   PoseMap neighbours_kept;  // neighbours' separators as of the last kept round
   PoseMap neighbours_kept_before;
-  PoseMap received;  // neighbours' separators sent in this round
+  PoseMap received;            // neighbours' separators sent in this round
+  std::vector<Factor> active;  // the factors in the problem
 
   Impl(core::RobotId robot_id, const PoseGraph& local, const RefineConfig& refine_config)
       : robot(robot_id), config(refine_config) {
@@ -121,6 +122,7 @@ struct RefineAgent::Impl {
   void activatePending() {
     std::erase_if(pending, [this](const Factor& f) {
       if (!problem.addFactor(f)) return false;
+      active.push_back(f);
       for (const core::PoseKey& end : {f.from, f.to}) {
         if (!own(end) || held.contains(end)) problem.setConstant(end);
       }
@@ -184,6 +186,16 @@ struct RefineAgent::Impl {
     for (auto& [key, pose] : estimates) {
       if (problem.isVariable(key)) pose = problem.pose(key);
     }
+  }
+
+  [[nodiscard]] double ownedCost() const {
+    double cost = 0.0;
+    for (const Factor& f : active) {
+      if (std::min(f.from.robot, f.to.robot) != robot) continue;
+      const core::Vector6d r = factorResidual(f, problem.pose(f.from), problem.pose(f.to));
+      cost += r.dot(f.information * r);
+    }
+    return cost;
   }
 
   [[nodiscard]] std::map<core::RobotId, PoseMap> outgoing() const {
@@ -254,6 +266,10 @@ const PoseMap& RefineAgent::estimates() const {
   return impl_->estimates;
 }
 
+double RefineAgent::ownedCost() const {
+  return impl_->ownedCost();
+}
+
 namespace {
 
 using Agents = std::map<core::RobotId, RefineAgent>;
@@ -301,6 +317,37 @@ double nextNesterov(double t) {
 
 }  // namespace
 
+RefineSchedule::RefineSchedule(const RefineConfig& config, double initial_cost)
+    : config_(config), kept_costs_{initial_cost} {
+  validate(config_);
+}
+
+double RefineSchedule::momentum() const {
+  return (t_ - 1.0) / (config_.accelerate ? nextNesterov(t_) : 1.0);
+}
+
+bool RefineSchedule::endRound(double cost) {
+  const double momentum_used = momentum();
+  const bool keep = cost <= kept_costs_.back();
+  if (keep) {
+    kept_costs_.push_back(cost);
+    converged_ = stalled(kept_costs_, config_);
+    t_ = config_.accelerate ? nextNesterov(t_) : 1.0;
+  } else if (momentum_used > 0.0) {
+    ++restarts_;  // the momentum overshot: the next round starts without it
+    t_ = 1.0;
+  } else {
+    converged_ = true;  // not even a plain round descends: rounding noise
+  }
+  ++rounds_;
+  round_costs_.push_back(kept_costs_.back());
+  return keep;
+}
+
+bool RefineSchedule::done() const {
+  return converged_ || rounds_ >= config_.max_rounds;
+}
+
 RefineSummary refineDistributed(PoseGraph& graph, const RefineConfig& config) {
   validate(config);
   const auto start = std::chrono::steady_clock::now();
@@ -311,27 +358,15 @@ RefineSummary refineDistributed(PoseGraph& graph, const RefineConfig& config) {
     agents.emplace(robot, RefineAgent(robot, local, config));
     summary.values_sent[robot] = 0;
   }
-  double t = 1.0;                                        // Nesterov's sequence; 1: no momentum
-  std::vector<double> kept_costs{summary.initial_cost};  // after every kept round
-  while (!summary.converged && summary.rounds < config.max_rounds) {
-    const double t_next = config.accelerate ? nextNesterov(t) : 1.0;
-    const double momentum = (t - 1.0) / t_next;
-    const double cost = runRound(agents, graph, momentum, summary);
-    const bool keep = cost <= summary.final_cost;
-    endRound(agents, graph, keep);
-    if (keep) {
-      kept_costs.push_back(cost);
-      summary.converged = stalled(kept_costs, config);
-      summary.final_cost = cost;
-      t = t_next;
-    } else if (momentum > 0.0) {
-      ++summary.restarts;  // the momentum overshot: the next round starts without it
-      t = 1.0;
-    } else {
-      summary.converged = true;  // not even a plain round descends: rounding noise
-    }
-    summary.round_costs.push_back(summary.final_cost);
+  RefineSchedule schedule(config, summary.initial_cost);
+  while (!schedule.done()) {
+    const double cost = runRound(agents, graph, schedule.momentum(), summary);
+    endRound(agents, graph, schedule.endRound(cost));
   }
+  summary.final_cost = schedule.cost();
+  summary.restarts = schedule.restarts();
+  summary.round_costs = schedule.roundCosts();
+  summary.converged = schedule.converged();
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;
 }

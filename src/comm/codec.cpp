@@ -20,12 +20,14 @@ static_assert(std::endian::native == std::endian::little, "the packed records ar
 
 // Record sizes of proto/dcl.proto's packed layouts.
 constexpr std::size_t kPoseRecord = 19;
+constexpr std::size_t kPrecisePoseRecord = 25;
 constexpr std::size_t kRotationRecord = 18;
 constexpr std::size_t kCovarianceRecord = 42;
 
 constexpr double kQuaternionScale = 32767.0 * std::numbers::sqrt2;  // components within 1/sqrt(2)
-constexpr double kRotationScale = 16384.0;                          // relaxed entries within +/-2
-constexpr double kLogSigmaOffset = 32.0;                            // sigma within 2^-32 .. 2^32
+constexpr double kPreciseQuaternionScale = 2147483647.0 * std::numbers::sqrt2;
+constexpr double kRotationScale = 16384.0;  // relaxed entries within +/-2
+constexpr double kLogSigmaOffset = 32.0;    // sigma within 2^-32 .. 2^32
 constexpr double kLogSigmaScale = 1024.0;
 constexpr double kCorrelationScale = 32767.0;
 constexpr std::uint64_t kMaxKeyframe = core::PoseKey::kIndexMask;
@@ -69,7 +71,10 @@ std::int16_t quantise(double value, double scale, const char* what) {
   return static_cast<std::int16_t>(q);
 }
 
-void putPose(std::string& out, const Eigen::Isometry3d& T) {
+/// The quaternion's smallest three components as Int (int16: the pose
+/// record, int32: the precise one), scaled by `scale`.
+template <class Int>
+void putPose(std::string& out, const Eigen::Isometry3d& T, double scale) {
   const Eigen::Vector3d t = T.translation();
   if (!t.allFinite() || t.cwiseAbs().maxCoeff() > std::numeric_limits<float>::max())
     throw core::Error("encode: a pose translation is not finite");
@@ -83,22 +88,28 @@ void putPose(std::string& out, const Eigen::Isometry3d& T) {
   }
   const double sign = c[largest] < 0.0 ? -1.0 : 1.0;
   put(out, static_cast<std::uint8_t>(largest));
+  constexpr double kLimit = std::numeric_limits<Int>::max();
   for (int i = 0; i < 4; ++i) {
-    if (i != largest) put(out, quantise(sign * c[i], kQuaternionScale, "quaternion component"));
+    if (i == largest) continue;
+    const double v = std::round(sign * c[i] * scale);
+    if (!(std::abs(v) <= kLimit)) throw core::Error("encode: quaternion component out of range");
+    put(out, static_cast<Int>(v));
   }
   for (int i = 0; i < 3; ++i) put(out, static_cast<float>(t[i]));
 }
 
-Eigen::Isometry3d takePose(const char*& in) {
+template <class Int>
+Eigen::Isometry3d takePose(const char*& in, double scale) {
   const int largest = take<std::uint8_t>(in);
   check(largest < 4, "pose record: quaternion index beyond 3");
   double c[4];
   double sum = 0.0;
   for (int i = 0; i < 4; ++i) {
     if (i == largest) continue;
-    const std::int16_t q = take<std::int16_t>(in);
-    check(q >= -32767, "pose record: a quaternion component below -1/sqrt(2)");
-    c[i] = q / kQuaternionScale;
+    const Int q = take<Int>(in);
+    check(q >= -std::numeric_limits<Int>::max(),
+          "pose record: a quaternion component below -1/sqrt(2)");
+    c[i] = q / scale;
     sum += c[i] * c[i];
   }
   check(sum <= 1.0 + 1e-4, "pose record: not a unit quaternion");
@@ -108,6 +119,14 @@ Eigen::Isometry3d takePose(const char*& in) {
   check(t.allFinite(), "pose record: translation not finite");
   const Eigen::Quaterniond q = Eigen::Quaterniond(c[0], c[1], c[2], c[3]).normalized();
   return core::makePose(t, q);
+}
+
+void putPose(std::string& out, const Eigen::Isometry3d& T) {
+  putPose<std::int16_t>(out, T, kQuaternionScale);
+}
+
+Eigen::Isometry3d takePose(const char*& in) {
+  return takePose<std::int16_t>(in, kQuaternionScale);
 }
 
 void putRotation(std::string& out, const Eigen::Matrix3d& R) {
@@ -210,27 +229,39 @@ double finiteIn(double value, const char* what) {
 }
 
 template <class Container>
-std::string poseRecords(const Container& poses) {
+std::string poseRecords(const Container& poses, bool precise = false) {
   if (poses.size() > kMaxEstimates) throw core::Error("encode: more than kMaxEstimates poses");
   std::string out;
-  out.reserve(poses.size() * kPoseRecord);
-  for (const auto& [id, T] : poses) putPose(out, T);
+  out.reserve(poses.size() * (precise ? kPrecisePoseRecord : kPoseRecord));
+  for (const auto& [id, T] : poses) {
+    if (precise) {
+      putPose<std::int32_t>(out, T, kPreciseQuaternionScale);
+    } else {
+      putPose(out, T);
+    }
+  }
   return out;
 }
 
 template <class RepeatedIds>
 std::vector<std::pair<core::KeyframeId, Eigen::Isometry3d>> posesIn(const RepeatedIds& ids,
                                                                     const std::string& records,
-                                                                    const char* what) {
+                                                                    const char* what,
+                                                                    bool precise = false) {
   if (static_cast<std::size_t>(ids.size()) > kMaxEstimates)
     invalid(std::string(what) + ": more than " + std::to_string(kMaxEstimates) + " poses");
-  if (records.size() != static_cast<std::size_t>(ids.size()) * kPoseRecord)
+  const std::size_t record = precise ? kPrecisePoseRecord : kPoseRecord;
+  if (records.size() != static_cast<std::size_t>(ids.size()) * record)
     invalid(std::string(what) + ": " + std::to_string(records.size()) + " bytes for " +
-            std::to_string(ids.size()) + " pose records");
+            std::to_string(ids.size()) + (precise ? " precise" : "") + " pose records");
   std::vector<std::pair<core::KeyframeId, Eigen::Isometry3d>> poses;
   poses.reserve(static_cast<std::size_t>(ids.size()));
   const char* in = records.data();
-  for (const std::uint64_t id : ids) poses.emplace_back(keyframeIn(id, what), takePose(in));
+  for (const std::uint64_t id : ids) {
+    poses.emplace_back(
+        keyframeIn(id, what),
+        precise ? takePose<std::int32_t>(in, kPreciseQuaternionScale) : takePose(in));
+  }
   return poses;
 }
 
@@ -321,7 +352,11 @@ void fill(wire::Envelope& e, const PoseEstimates& m) {
   wire::PoseEstimates& w = *e.mutable_pose_estimates();
   fillState(*w.mutable_state(), m.state);
   for (const auto& [id, T] : m.poses) w.add_keyframes(keyframeOut(id));
-  w.set_poses(poseRecords(m.poses));
+  if (m.precise) {
+    w.set_precise_poses(poseRecords(m.poses, true));
+  } else {
+    w.set_poses(poseRecords(m.poses));
+  }
 }
 
 void fill(wire::Envelope& e, const SummaryRequest& m) {
@@ -450,7 +485,11 @@ RotationEstimates bodyIn(const wire::RotationEstimates& w) {
 PoseEstimates bodyIn(const wire::PoseEstimates& w) {
   PoseEstimates m;
   m.state = stateIn(w.state(), "pose estimates state");
-  m.poses = posesIn(w.keyframes(), w.poses(), "pose estimates");
+  check(w.poses().empty() || w.precise_poses().empty(),
+        "pose estimates: both pose and precise pose records");
+  m.precise = !w.precise_poses().empty();
+  m.poses = m.precise ? posesIn(w.keyframes(), w.precise_poses(), "pose estimates", true)
+                      : posesIn(w.keyframes(), w.poses(), "pose estimates");
   return m;
 }
 
@@ -556,6 +595,18 @@ Decoded decode(std::span<const std::uint8_t> bytes) {
     out.detail = failure.detail;
   }
   return out;
+}
+
+Body asDelivered(const Body& body) {
+  Message m;
+  m.header.sender = core::RobotId(0);
+  m.header.incarnation = 1;
+  m.header.sequence = 1;
+  m.body = body;
+  const std::vector<std::uint8_t> bytes = encode(m);
+  Decoded d = decode(bytes);
+  if (!d.message) throw core::Error("a message does not decode as it was encoded: " + d.detail);
+  return std::move(d.message->body);
 }
 
 }  // namespace dcl::comm

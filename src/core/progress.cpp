@@ -3,6 +3,7 @@
 #include <cstring>
 
 #include <fmt/format.h>
+#include <sys/ioctl.h>
 #include <unistd.h>
 
 #include <dcl/core/progress.hpp>
@@ -17,6 +18,14 @@ bool isTerminal(std::FILE* stream) {
 }
 
 constexpr auto kRedrawInterval = std::chrono::milliseconds(100);
+constexpr auto kBoardInterval = std::chrono::milliseconds(200);
+
+/// Columns of the terminal behind `stream`, 0 when unknown.
+std::size_t terminalWidth(std::FILE* stream) {
+  winsize size{};
+  if (::ioctl(::fileno(stream), TIOCGWINSZ, &size) != 0) return 0;
+  return size.ws_col;
+}
 }  // namespace
 
 std::string formatDuration(double seconds) {
@@ -78,6 +87,53 @@ void ProgressBar::draw() {
   // \r returns to the line start, \x1b[K clears what a longer previous line left.
   std::fprintf(stream_, "\r%s\x1b[K", line.c_str());
   std::fflush(stream_);
+}
+
+std::string redrawText(std::size_t previous, std::span<const std::string> lines,
+                       std::size_t width) {
+  // \r and CSI n A return to the first line drawn; CSI K clears what a longer
+  // line left, CSI J what more lines left below.
+  std::string out = "\r";
+  if (previous > 0) out += fmt::format("\x1b[{}A", previous);
+  for (const std::string& line : lines) {
+    out += width > 0 && line.size() >= width ? line.substr(0, width - 1) : line;
+    out += "\x1b[K\n";
+  }
+  out += "\x1b[J";
+  return out;
+}
+
+ProgressBoard::ProgressBoard(std::FILE* stream)
+    : stream_(stream),
+      enabled_(isTerminal(stream)),
+      start_(Clock::now()),
+      last_draw_(start_ - kBoardInterval) {}
+
+bool ProgressBoard::due() const {
+  return enabled_ && !finished_ && Clock::now() - last_draw_ >= kBoardInterval;
+}
+
+void ProgressBoard::draw(std::span<const std::string> lines) {
+  if (!due()) return;
+  last_draw_ = Clock::now();
+  write(lines);
+}
+
+void ProgressBoard::finish(std::span<const std::string> lines) {
+  if (!enabled_ || finished_) return;
+  finished_ = true;
+  write(lines);
+}
+
+double ProgressBoard::elapsed() const {
+  return std::chrono::duration<double>(Clock::now() - start_).count();
+}
+
+void ProgressBoard::write(std::span<const std::string> lines) {
+  const std::string text = redrawText(drawn_, lines, terminalWidth(stream_));
+  std::fwrite(text.data(), 1, text.size(), stream_);
+  std::fflush(stream_);
+  drawn_ = lines.size();
 }
 
 }  // namespace dcl::core

@@ -1,5 +1,7 @@
 #include <algorithm>
 #include <array>
+#include <cstring>
+#include <iterator>
 #include <utility>
 
 #include <fmt/format.h>
@@ -315,6 +317,38 @@ std::string headerText(const std::vector<detail::OutField>& fields, std::size_t 
   return out;
 }
 
+std::string colouredHeader(std::size_t n, PlyEncoding encoding) {
+  std::string out = "ply\nformat ";
+  out.append(encoding == PlyEncoding::kAscii ? "ascii" : "binary_little_endian");
+  out.append(" 1.0\ncomment written by dcl-slam\nelement vertex ").append(std::to_string(n));
+  out.append(
+      "\nproperty float x\nproperty float y\nproperty float z\nproperty uchar red\n"
+      "property uchar green\nproperty uchar blue\nend_header\n");
+  return out;
+}
+
+/// Records of 15 bytes: three little-endian floats, then three colour bytes.
+std::string colouredBinary(std::span<const Eigen::Vector3f> points, std::span<const Rgb> colours) {
+  constexpr std::size_t kRecord = 3 * sizeof(float) + 3;
+  std::string out(points.size() * kRecord, '\0');
+  char* p = out.data();
+  for (std::size_t i = 0; i < points.size(); ++i, p += kRecord) {
+    std::memcpy(p, points[i].data(), 3 * sizeof(float));
+    const std::array<std::uint8_t, 3> rgb{colours[i].r, colours[i].g, colours[i].b};
+    std::memcpy(p + 3 * sizeof(float), rgb.data(), 3);
+  }
+  return out;
+}
+
+std::string colouredAscii(std::span<const Eigen::Vector3f> points, std::span<const Rgb> colours) {
+  std::string out;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    fmt::format_to(std::back_inserter(out), "{} {} {} {} {} {}\n", points[i].x(), points[i].y(),
+                   points[i].z(), colours[i].r, colours[i].g, colours[i].b);
+  }
+  return out;
+}
+
 }  // namespace
 
 core::PointCloud readPly(const std::string& path, const PlyReadOptions& options) {
@@ -334,6 +368,17 @@ void writePly(const std::string& path, const core::PointCloud& cloud,
   detail::writeBytes(path, headerText(fields, cloud.size(), options.encoding) +
                                (ascii ? detail::encodeAscii(cloud, fields)
                                       : detail::encodeBinary(cloud, fields, false)));
+}
+
+void writeColouredPly(const std::string& path, std::span<const Eigen::Vector3f> points,
+                      std::span<const Rgb> colours, const PlyWriteOptions& options) {
+  if (points.size() != colours.size())
+    throw core::FileError({path},
+                          fmt::format("{} points but {} colours", points.size(), colours.size()));
+  const bool ascii = options.encoding == PlyEncoding::kAscii;
+  detail::writeBytes(
+      path, colouredHeader(points.size(), options.encoding) +
+                (ascii ? colouredAscii(points, colours) : colouredBinary(points, colours)));
 }
 
 }  // namespace dcl::io

@@ -64,7 +64,7 @@ comm::Body toWire(const backend::DgsMessage& m) {
     return r;
   }
   if (!m.poses.empty()) {
-    comm::PoseEstimates p{stateOf(m), {}};
+    comm::PoseEstimates p{stateOf(m), {}, false};
     for (const auto& [key, T] : m.poses) p.poses.emplace_back(key.keyframe, T);
     return p;
   }
@@ -84,12 +84,49 @@ std::optional<backend::DgsMessage> fromWire(const comm::Message& message) {
     setState(out, r->state);
     for (const auto& [id, R] : r->rotations) out.rotations[{out.from, id}] = R;
   } else if (const auto* p = std::get_if<comm::PoseEstimates>(&message.body)) {
+    if (p->state.stage == OptimisationStage::refine) return std::nullopt;
     setState(out, p->state);
     for (const auto& [id, T] : p->poses) out.poses[{out.from, id}] = T;
   } else {
     return std::nullopt;
   }
   return out;
+}
+
+comm::Body toWire(const RefineMessage& m) {
+  comm::DgsState state;
+  state.round = m.round;
+  state.stage = OptimisationStage::refine;
+  state.iteration = m.step;
+  if (m.cost_share) {
+    state.change = *m.cost_share;
+    return state;
+  }
+  comm::PoseEstimates p{state, {}, true};
+  for (const auto& [key, T] : m.poses) p.poses.emplace_back(key.keyframe, T);
+  return p;
+}
+
+std::optional<RefineMessage> refineFromWire(const comm::Message& message) {
+  if (!message.header.receiver) return std::nullopt;  // refinement messages are addressed
+  RefineMessage out;
+  out.from = message.header.sender;
+  out.to = *message.header.receiver;
+  if (const auto* s = std::get_if<comm::DgsState>(&message.body)) {
+    if (s->stage != OptimisationStage::refine) return std::nullopt;
+    out.round = s->round;
+    out.step = s->iteration;
+    out.cost_share = s->change;
+    return out;
+  }
+  if (const auto* p = std::get_if<comm::PoseEstimates>(&message.body)) {
+    if (p->state.stage != OptimisationStage::refine) return std::nullopt;
+    out.round = p->state.round;
+    out.step = p->state.iteration;
+    for (const auto& [id, T] : p->poses) out.poses[{out.from, id}] = T;
+    return out;
+  }
+  return std::nullopt;
 }
 
 }  // namespace dcl::robot

@@ -54,6 +54,13 @@ void validate(const RobotConfig& config) {
   registration::validate(config.verification);
   comm::validate(config.messenger);
   backend::validate(config.dgs);
+  backend::validate(config.refine);
+  for (const auto& [name, value] :
+       {std::pair{"loop_sigma_translation", config.loop_sigma_translation},
+        std::pair{"loop_sigma_rotation", config.loop_sigma_rotation}}) {
+    if (!(value >= 0.0) || !std::isfinite(value))
+      throw core::Error(std::string("robot config: ") + name + " must be a finite number >= 0");
+  }
   for (const auto& [name, value] : {std::pair{"optimise_period", config.optimise_period},
                                     std::pair{"round_timeout", config.round_timeout},
                                     std::pair{"announce_period", config.announce_period}}) {
@@ -72,12 +79,66 @@ struct Link {
   std::uint32_t accepted = 0;          ///< its accepted inter-robot loops
 };
 
+using PoseMap = std::map<core::PoseKey, Eigen::Isometry3d>;
+
+/// s a robot waiting in the refinement lets pass before sending its messages
+/// of the step again (one may have been lost).
+constexpr double kRefineResend = 0.1;
+
+/// s a robot waits for a lower neighbour's DGS step before stepping without it.
+constexpr double kDgsPatience = 0.1;
+
+/// The distributed refinement after DGS, within a round.
+struct Refinement {
+  backend::RefineAgent agent;
+  std::optional<backend::RefineSchedule> schedule;  ///< from step 0's total cost on
+  std::uint32_t step = 0;                           ///< 0: the exchange of DGS's estimates
+  bool stepped = false;                             ///< this robot's block step of `step` done
+  bool shared = false;                              ///< its cost share of `step` sent
+  std::set<core::RobotId> applied;                  ///< members whose values of `step` are in
+  /// Neighbours whose step-0 message carried separators for this robot: the
+  /// ones it waits for. A member whose loops changed after it joined may hold
+  /// a loop this robot does not, or lack one it holds.
+  std::set<core::RobotId> linked;
+  std::vector<RefineMessage> sent;  ///< this step's messages and the last step's share
+  double last_sent = 0.0;
+};
+
+/// `body` (a DGS message) with every member of `group` in its progress: a
+/// member not heard of yet as not started. The progress a DGS agent relays
+/// holds only the members it has heard from, and a robot joining on a first
+/// message must learn the whole group from it.
+Body withMembers(Body body, const std::set<core::RobotId>& group) {
+  const auto add = [&](comm::DgsState& state) {
+    for (const core::RobotId member : group) {
+      const bool listed =
+          std::any_of(state.progress.begin(), state.progress.end(),
+                      [&](const comm::MemberProgress& p) { return p.robot == member; });
+      if (!listed) state.progress.push_back({member, 0, -1, false});
+    }
+  };
+  if (auto* s = std::get_if<comm::DgsState>(&body)) add(*s);
+  if (auto* r = std::get_if<comm::RotationEstimates>(&body)) add(r->state);
+  if (auto* p = std::get_if<comm::PoseEstimates>(&body)) add(p->state);
+  return body;
+}
+
 /// A DGS round this robot takes part in.
 struct Round {
   std::uint32_t number = 0;  ///< the initiator's counter << 8 | the initiator's id
   std::set<core::RobotId> group;
   backend::DgsAgent agent;
   double started = 0.0;
+  backend::PoseGraph graph;  ///< the own part of the graph it optimises
+  /// Per member heard from in this round: its latest DGS step, and whether it
+  /// has left DGS (its last stage finished).
+  std::map<core::RobotId, std::pair<int, bool>> heard;
+  double waiting_since = 0.0;  ///< when this robot began to wait for a lower neighbour
+  std::optional<Refinement> refine;
+  /// Refinement messages received, by step (a member may be a step ahead, or
+  /// already refining while DGS still runs here).
+  std::map<std::uint32_t, std::map<core::RobotId, PoseMap>> values;
+  std::map<std::uint32_t, std::map<core::RobotId, float>> shares;
 };
 
 std::uint8_t initiator(std::uint32_t round) {
@@ -105,6 +166,7 @@ struct RobotNode::Impl {
   std::shared_ptr<const place::Descriptor> descriptor;
   place::PlaceIndex index;
   std::map<core::RobotId, Neighbour> neighbours;
+  std::vector<backend::Factor> own_chain;  ///< odometry steps as the neighbours read them
   std::map<std::string, double> counters;
   double now = 0.0;
   // Optimisation rounds.
@@ -154,8 +216,11 @@ struct RobotNode::Impl {
     if (keyframe.id.value() > 0) {
       m.odometry = comm::OdometryStep{core::KeyframeId(keyframe.id.value() - 1),
                                       keyframe.T_previous_keyframe, keyframe.covariance};
-      for (auto& [robot, n] : neighbours)
-        n.pcm.addRobotFactor(odometryFactor(self, keyframe.id, *m.odometry));
+      // PCM checks the own chain as the neighbours read it (both sides decide alike).
+      m = std::get<comm::DescriptorMessage>(comm::asDelivered(m));
+      const backend::Factor step = odometryFactor(self, keyframe.id, *m.odometry);
+      own_chain.push_back(step);
+      for (auto& [robot, n] : neighbours) n.pcm.addRobotFactor(step);
     }
     messenger.send(std::nullopt, std::move(m), now);
     count("descriptors_sent");
@@ -163,12 +228,7 @@ struct RobotNode::Impl {
 
   /// The odometry factors of the own keyframes so far (for a new PCM pair).
   void addOwnChain(backend::PairwiseConsistency& pcm) const {
-    for (const core::Keyframe& k : mapper.keyframes()) {
-      if (k.id.value() == 0) continue;
-      pcm.addRobotFactor(odometryFactor(self, k.id,
-                                        comm::OdometryStep{core::KeyframeId(k.id.value() - 1),
-                                                           k.T_previous_keyframe, k.covariance}));
-    }
+    for (const backend::Factor& step : own_chain) pcm.addRobotFactor(step);
   }
 
   Neighbour& neighbour(core::RobotId robot) {
@@ -200,6 +260,7 @@ struct RobotNode::Impl {
     if (const auto* a = std::get_if<comm::DgsState>(&m.body);
         a != nullptr && a->stage == comm::OptimisationStage::idle)
       return onAnnouncement(from, *a);
+    if (std::optional<RefineMessage> r = refineFromWire(m)) return onRefine(*r);
     if (std::optional<backend::DgsMessage> dgs = fromWire(m)) onDgs(*dgs);
   }
 
@@ -244,6 +305,8 @@ struct RobotNode::Impl {
       answer = verify(c);
     }
     count(refusalCounter(answer.status));
+    // Keep the loop as the querying robot will read it, so both hold the same factor.
+    answer = std::get<comm::LoopMeasurement>(comm::asDelivered(answer));
     if (answer.status == comm::LoopStatus::verified) addLoop(from, loopFactor(self, from, answer));
     messenger.send(from, answer, now);
   }
@@ -263,6 +326,10 @@ struct RobotNode::Impl {
     answer.status = static_cast<comm::LoopStatus>(v.reason);  // the same order, none = verified
     answer.T_match_query = v.T_candidate_query;
     answer.covariance = v.covariance;
+    answer.covariance.diagonal().head<3>().array() +=
+        config.loop_sigma_translation * config.loop_sigma_translation;
+    answer.covariance.diagonal().tail<3>().array() +=
+        config.loop_sigma_rotation * config.loop_sigma_rotation;
     return answer;
   }
 
@@ -400,8 +467,17 @@ struct RobotNode::Impl {
 
   void join(std::uint32_t number, const std::set<core::RobotId>& members) {
     if (round) leave("dgs_rounds_abandoned");
-    round.emplace(
-        Round{number, members, backend::DgsAgent(self, roundGraph(members), config.dgs), now});
+    backend::PoseGraph graph = roundGraph(members);
+    round.emplace(Round{number,
+                        members,
+                        backend::DgsAgent(self, graph, config.dgs),
+                        now,
+                        std::move(graph),
+                        {},
+                        now,
+                        std::nullopt,
+                        {},
+                        {}});
     round->agent.startRound(members, number);
     last_signature = signature(members);
     spdlog::debug("robot {}: t {:.1f}: joins round {} of {} robots", core::robotName(self), now,
@@ -425,34 +501,256 @@ struct RobotNode::Impl {
     if (!round || m.round != round->number) {
       // A round led by a lower robot wins over this robot's own.
       if (round && initiator(m.round) >= initiator(round->number)) return count("dgs_ignored");
-      std::set<core::RobotId> members{self, m.from};
+      // Every DGS message names the whole group (withMembers), so each member
+      // holds the initiator's group, whatever its own view of the announcements:
+      // the refinement's shares add up only over the same members.
+      std::set<core::RobotId> members{m.from};
       for (const auto& [robot, p] : m.progress) members.insert(robot);
-      if (!members.contains(self)) return;
+      if (!members.contains(self)) return count("dgs_ignored");
       join(m.round, members);
     }
+    auto& [step, left] = round->heard[m.from];
+    step = std::max(step, m.iteration);
+    if (const auto it = m.progress.find(m.from); it != m.progress.end())
+      left = left || (m.stage == backend::DgsStage::pose && it->second.finished);
     round->agent.receive(m);
   }
 
-  /// One DGS step a tick; the estimates taken when the round is done.
+  /// One DGS step a tick, then the refinement; the estimates taken when the round is done.
   void stepRound() {
     if (!round) return;
     const std::set<core::RobotId> present = messenger.neighbours();
-    for (const core::RobotId r : round->group) {
-      if (r != self && !present.contains(r)) return leave("dgs_rounds_abandoned");
+    const bool whole = std::all_of(round->group.begin(), round->group.end(), [&](core::RobotId r) {
+      return r == self || present.contains(r);
+    });
+    const bool late = now - round->started > config.round_timeout;
+    if (round->refine && (!whole || late)) {
+      // DGS's estimate and every kept refinement step are consistent in the
+      // group: keep the last kept one rather than nothing.
+      count(whole ? "refine_timeouts" : "refine_cut_short");
+      return finishRound(round->refine->agent.estimates());
     }
-    if (now - round->started > config.round_timeout) return leave("dgs_rounds_abandoned");
-    round->agent.iterate();
-    for (const backend::DgsMessage& m : round->agent.outgoing())
-      messenger.send(m.to, toWire(m), now);
-    if (round->agent.stage() != backend::DgsStage::done) return;
-    for (const auto& [key, T] : round->agent.estimates())
+    if (!whole || late) return leave("dgs_rounds_abandoned");
+    if (!round->refine) {
+      if (!membersInStep()) return;
+      round->agent.iterate();
+      for (const backend::DgsMessage& m : round->agent.outgoing())
+        messenger.send(m.to, withMembers(toWire(m), round->group), now);
+      if (round->agent.stage() != backend::DgsStage::done) return;
+      count("dgs_iterations_rotation", round->agent.stageIterations(backend::DgsStage::rotation));
+      count("dgs_iterations_pose", round->agent.stageIterations(backend::DgsStage::pose));
+      if (config.refine.max_rounds == 0) return finishRound(round->agent.estimates());
+      startRefinement();
+    }
+    advanceRefinement();
+  }
+
+  /// Steps in Algorithm 1's order, in step with the group: a robot takes its
+  /// k-th DGS step once every lower member it has heard from in the round has
+  /// sent its k-th and every higher one its (k-1)-th (or has left DGS), as the
+  /// robots of an offline run step in turn. Members stepping at their own
+  /// pace never see a step at which the whole group was converged (the
+  /// members' step counts drift apart), and stepping all at once on each
+  /// other's previous values is Jacobi, which oscillates when three or more
+  /// robots are tightly looped. A member silent for kDgsPatience (a lost
+  /// message) is not waited for longer.
+  [[nodiscard]] bool membersInStep() {
+    const int next = round->agent.iteration() + 1;
+    for (const auto& [robot, heard] : round->heard) {
+      const int needed = robot < self ? next : next - 1;
+      if (heard.second || heard.first >= needed) continue;
+      if (now - round->waiting_since < kDgsPatience) return false;
+      count("dgs_waits_cut_short");
+      break;
+    }
+    round->waiting_since = now;
+    return true;
+  }
+
+  void finishRound(const PoseMap& estimates) {
+    for (const auto& [key, T] : estimates)
       if (key.robot == self) optimised[key.keyframe] = T;
-    count("dgs_iterations_rotation", round->agent.stageIterations(backend::DgsStage::rotation));
-    count("dgs_iterations_pose", round->agent.stageIterations(backend::DgsStage::pose));
     finished.insert(round->number);
     round.reset();
     last_round_end = now;
     count("dgs_rounds");
+  }
+
+  // ---- the refinement within a round ----------------------------------------
+
+  /// The refinement's block: own poses at DGS's estimates, the round's factors;
+  /// the neighbours' separators come with their first messages.
+  void startRefinement() {
+    backend::PoseGraph local;
+    for (const auto& [key, T] : round->agent.estimates())
+      if (key.robot == self) local.addNode(key, T);
+    for (const backend::Factor& f : round->graph.factors()) local.addFactor(f);
+    if (self == *round->group.begin() && local.size() > 0) local.fix(local.nodes().begin()->first);
+    round->refine.emplace(Refinement{backend::RefineAgent(self, local, config.refine),
+                                     std::nullopt,
+                                     0,
+                                     true,
+                                     false,
+                                     {},
+                                     {},
+                                     {},
+                                     now});
+    sendValues();
+  }
+
+  void onRefine(const RefineMessage& m) {
+    if (finished.contains(m.round)) return;
+    if (!round || m.round != round->number || !round->group.contains(m.from)) {
+      spdlog::debug(
+          "robot {}: t {:.2f}: ignores refinement step {} of round {} from {} (in round {})",
+          core::robotName(self), now, m.step, m.round, core::robotName(m.from),
+          round ? round->number : 0U);
+      return count("refine_ignored");
+    }
+    if (!round->refine) tellDgsMemberLeft(m.from);
+    // Buffered by step: a neighbour may be a step ahead, or DGS still running here.
+    if (m.cost_share) {
+      if (std::isfinite(*m.cost_share)) round->shares[m.step][m.from] = *m.cost_share;
+      return;
+    }
+    round->values[m.step][m.from] = m.poses;
+  }
+
+  /// A member refining has left DGS: its last DGS message, which says so,
+  /// may have been lost. The agent is told as that message would have told it.
+  void tellDgsMemberLeft(core::RobotId member) {
+    auto& [step, left] = round->heard[member];
+    if (left || round->agent.stage() != backend::DgsStage::pose) return;
+    left = true;
+    backend::DgsMessage m;
+    m.from = member;
+    m.to = self;
+    m.stage = backend::DgsStage::pose;
+    m.round = round->number;
+    m.iteration = ++step;
+    m.initialised = true;
+    m.converged = true;
+    m.progress[member] = {step, step, true};
+    round->agent.receive(m);
+  }
+
+  void send(RefineMessage m) {
+    Refinement& r = *round->refine;
+    messenger.send(m.to, toWire(m), now);
+    r.sent.push_back(std::move(m));
+    r.last_sent = now;
+  }
+
+  /// This step's separators to every linked neighbour; in step 0, DGS's
+  /// estimates to every member (none for a member without a loop here).
+  void sendValues() {
+    Refinement& r = *round->refine;
+    const std::map<core::RobotId, std::set<core::PoseKey>>& separators = r.agent.separators();
+    for (const core::RobotId member : round->group) {
+      if (member == self || (r.step > 0 && !r.linked.contains(member))) continue;
+      RefineMessage m{self, member, round->number, r.step, {}, std::nullopt};
+      if (const auto it = separators.find(member); it != separators.end()) {
+        for (const core::PoseKey& key : it->second)
+          m.poses.emplace(key, r.agent.estimates().at(key));
+      }
+      send(std::move(m));
+    }
+  }
+
+  /// Takes in the values of this step from `robots` that have arrived; true
+  /// when every one of them has.
+  bool takeValues(const std::set<core::RobotId>& robots) {
+    Refinement& r = *round->refine;
+    bool all = true;
+    for (const core::RobotId n : robots) {
+      if (r.applied.contains(n)) continue;
+      const auto& step_values = round->values[r.step];
+      const auto it = step_values.find(n);
+      if (it == step_values.end()) {
+        all = false;
+        continue;
+      }
+      r.agent.receive(it->second);
+      r.applied.insert(n);
+    }
+    return all;
+  }
+
+  /// Moves the refinement on as far as what arrived allows: the block step
+  /// once the lower neighbours' values are in, the cost share once all
+  /// neighbours' are, the group's decision once every member's share is.
+  void advanceRefinement() {
+    while (round && round->refine) {
+      Refinement& r = *round->refine;
+      if (!r.stepped) {
+        std::set<core::RobotId> lower;
+        for (const core::RobotId n : r.linked)
+          if (n < self) lower.insert(n);
+        if (!takeValues(lower)) return resendWhenStalled();
+        (void)r.agent.step();
+        r.stepped = true;
+        sendValues();
+      }
+      if (!r.shared) {
+        if (r.step == 0) {
+          std::set<core::RobotId> others = round->group;
+          others.erase(self);
+          if (!takeValues(others)) return resendWhenStalled();
+          const std::set<core::RobotId> neighbours = r.agent.neighbours();
+          for (const auto& [member, poses] : round->values[0])
+            if (!poses.empty() && neighbours.contains(member)) r.linked.insert(member);
+        } else if (!takeValues(r.linked)) {
+          return resendWhenStalled();
+        }
+        const auto share = static_cast<float>(r.agent.ownedCost());
+        round->shares[r.step][self] = share;
+        for (const core::RobotId member : round->group)
+          if (member != self) send({self, member, round->number, r.step, {}, share});
+        r.shared = true;
+      }
+      const std::map<core::RobotId, float>& shares = round->shares[r.step];
+      if (shares.size() < round->group.size()) return resendWhenStalled();
+      double total = 0.0;
+      for (const auto& [member, share] : shares) total += static_cast<double>(share);
+      spdlog::debug("robot {}: t {:.2f}: round {} refinement step {}: cost {:.6g}",
+                    core::robotName(self), now, round->number, r.step, total);
+      if (!r.schedule) {
+        r.schedule.emplace(config.refine, total);
+        r.agent.endRound(true);  // the neighbours' DGS separators become the kept ones
+      } else {
+        r.agent.endRound(r.schedule->endRound(total));
+      }
+      if (r.schedule->done()) {
+        count("refine_steps", r.schedule->rounds());
+        count("refine_restarts", r.schedule->restarts());
+        if (r.schedule->rounds() > 0)
+          counters["refine_cost_ratio_last"] =
+              r.schedule->cost() / r.schedule->roundCosts().front();
+        return finishRound(r.agent.estimates());
+      }
+      nextStep(r);
+    }
+  }
+
+  void nextStep(Refinement& r) {
+    round->values.erase(r.step);
+    round->shares.erase(r.step);
+    // Keep the share just sent: a member still waiting for it may have lost it.
+    std::erase_if(r.sent,
+                  [&](const RefineMessage& m) { return !m.cost_share || m.step != r.step; });
+    ++r.step;
+    r.stepped = false;
+    r.shared = false;
+    r.applied.clear();
+    r.agent.beginRound(r.schedule->momentum());
+  }
+
+  void resendWhenStalled() {
+    Refinement& r = *round->refine;
+    if (now - r.last_sent < kRefineResend) return;
+    for (const RefineMessage& m : r.sent) messenger.send(m.to, toWire(m), now);
+    r.last_sent = now;
+    count("refine_resent", static_cast<double>(r.sent.size()));
   }
 
   /// The latest estimate of own keyframe `k`: optimised, or carried from the

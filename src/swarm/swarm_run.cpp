@@ -56,6 +56,7 @@ void validate(const std::vector<SwarmMember>& members, const SwarmConfig& config
   if (!(config.drain >= 0.0) || !std::isfinite(config.drain))
     throw core::Error("swarm config: drain must be finite and at least 0");
   if (config.threads < 0) throw core::Error("swarm config: threads must be at least 0");
+  validate(config.map);
   for (const SwarmMember& m : members) {
     if (!m.scans) throw core::Error("swarm: robot '" + m.name + "' has no scans");
   }
@@ -68,19 +69,31 @@ struct Member {
   std::size_t next = 0;    ///< the next scan
   std::unique_ptr<BufferedTransport> transport;
   std::unique_ptr<robot::RobotNode> node;
+  KeyframeClouds map_clouds;
+  std::size_t keyframes_seen = 0;  ///< keyframes whose clouds went to map_clouds
 
   [[nodiscard]] double swarmTime(std::size_t i) const {
     return spec.start_time + spec.scans->stamp(i);
   }
 
-  /// Plays the scans due by `time`, then handles what arrived; nothing once it has left.
+  [[nodiscard]] bool left(double time) const { return spec.leave_time && time >= *spec.leave_time; }
+
+  /// Plays the scans due by `time`, keeps the clouds of new keyframes for the
+  /// map, then handles what arrived; nothing once it has left.
   void step(double time) {
-    if (spec.leave_time && time >= *spec.leave_time) return;
+    if (left(time)) return;
     while (next < frames && swarmTime(next) <= time) {
       node->addScan(spec.scans->stamp(next), spec.scans->scan(next));
       ++next;
     }
     node->tick(time);
+    keepClouds();
+  }
+
+  void keepClouds() {
+    const std::vector<core::Keyframe>& keyframes = node->keyframes();
+    for (; keyframes_seen < keyframes.size(); ++keyframes_seen)
+      map_clouds.add(keyframes[keyframes_seen].cloud);
   }
 };
 
@@ -105,19 +118,38 @@ std::map<comm::MessageKind, std::vector<std::size_t>> sentOverTime(const comm::S
   return bins;
 }
 
-MemberResult resultOf(const Member& m, const comm::SimRadio& radio, core::RobotId id,
-                      double interval) {
+MemberResult resultOf(Member& m, const comm::SimRadio& radio, core::RobotId id, double interval) {
   MemberResult r;
   r.name = m.spec.name;
+  r.map_clouds = std::move(m.map_clouds);
   r.frames = m.next;
-  r.keyframes = m.node->keyframes();
-  for (core::Keyframe& k : r.keyframes) k.cloud = {};
+  r.keyframes.reserve(m.node->keyframes().size());
+  for (const core::Keyframe& k : m.node->keyframes()) {  // all but the cloud, never copied
+    r.keyframes.push_back(
+        {k.robot, k.id, k.stamp, k.T_odom_keyframe, k.T_previous_keyframe, k.covariance, {}});
+  }
   r.graph = m.node->graph();
   r.inter_loops = m.node->interLoops();
   r.counters = m.node->counters();
   r.traffic = radio.traffic(id);
   r.sent_over_time = sentOverTime(radio, id, interval);
   return r;
+}
+
+void updateStatus(SwarmStatus& status, const std::vector<Member>& robots,
+                  const comm::SimRadio& radio, double time) {
+  status.time = time;
+  for (std::size_t r = 0; r < robots.size(); ++r) {
+    const Member& m = robots[r];
+    RobotProgress& p = status.robots[r];
+    p.frames = m.next;
+    p.keyframes = m.node->keyframes().size();
+    const auto& counters = m.node->counters();
+    const auto loops = counters.find("inter_loops_accepted");
+    p.inter_loops = loops == counters.end() ? 0 : static_cast<std::size_t>(loops->second);
+    p.bytes_sent = radio.traffic(core::RobotId(static_cast<std::uint8_t>(r))).sent;
+    p.left = m.left(time);
+  }
 }
 
 }  // namespace
@@ -137,11 +169,15 @@ SwarmResult runSwarm(std::vector<SwarmMember> members, const SwarmConfig& config
     const core::RobotId id(static_cast<std::uint8_t>(r));
     m.transport = std::make_unique<BufferedTransport>(radio.endpoint(id));
     m.node = std::make_unique<robot::RobotNode>(*m.transport, config.robot);
+    m.map_clouds = KeyframeClouds(config.map.voxel);
   }
   end += config.drain;
+  SwarmStatus status;
+  status.end = end;
+  for (const Member& m : robots)
+    status.robots.push_back({.name = m.spec.name, .total_frames = m.frames});
 
   tbb::task_arena arena(config.threads > 0 ? config.threads : tbb::task_arena::automatic);
-  std::vector<std::size_t> done(robots.size(), 0);
   double time = 0.0;
   for (std::size_t k = 0; time <= end; time = static_cast<double>(++k) * config.step) {
     for (std::size_t r = 0; r < robots.size(); ++r) {
@@ -156,19 +192,21 @@ SwarmResult runSwarm(std::vector<SwarmMember> members, const SwarmConfig& config
       tbb::parallel_for(std::size_t{0}, robots.size(),
                         [&](std::size_t r) { robots[r].step(time); });
     });
-    for (std::size_t r = 0; r < robots.size(); ++r) {
-      robots[r].transport->flush();
-      done[r] = robots[r].next;
+    for (Member& m : robots) m.transport->flush();
+    if (progress) {
+      updateStatus(status, robots, radio, time);
+      progress(status);
     }
-    if (progress) progress(time, done);
   }
 
   SwarmResult result;
   result.duration = time;
   result.radio_events = radio.log().size();
-  for (std::size_t r = 0; r < robots.size(); ++r)
+  for (std::size_t r = 0; r < robots.size(); ++r) {
     result.robots.push_back(resultOf(robots[r], radio, core::RobotId(static_cast<std::uint8_t>(r)),
                                      config.radio.meter_interval));
+    robots[r].node.reset();  // its keyframe clouds go before the next robot's results come
+  }
   return result;
 }
 

@@ -254,6 +254,59 @@ class Demo(unittest.TestCase):
     """dcl-slam demo: no arguments but an output folder; simulates the demo
     swarm, runs it over the simulated radio and writes every output."""
 
+    @staticmethod
+    def read_coloured_ply(path):
+        """The vertices of a binary PLY map written by dcl-slam: [(x, y, z)] and
+        [(red, green, blue)]; fails unless the header is exactly that layout and
+        the data exactly that long."""
+        import struct
+        with open(path, "rb") as f:
+            data = f.read()
+        end = data.index(b"end_header\n") + len(b"end_header\n")
+        header = data[:end].decode("ascii").splitlines()
+        assert header[:2] == ["ply", "format binary_little_endian 1.0"], header[:2]
+        count = next(int(line.split()[2]) for line in header if line.startswith("element vertex"))
+        properties = [line.split()[1:] for line in header if line.startswith("property")]
+        assert properties == [["float", "x"], ["float", "y"], ["float", "z"], ["uchar", "red"],
+                              ["uchar", "green"], ["uchar", "blue"]], properties
+        assert len(data) - end == 15 * count, (len(data) - end, count)
+        records = list(struct.iter_unpack("<3f3B", data[end:]))
+        return [r[:3] for r in records], [r[3:] for r in records]
+
+    @staticmethod
+    def report_colours(path):
+        """Each robot's colour in report.html's legend: {name: (r, g, b)}."""
+        with open(path) as f:
+            html = f.read()
+        found = re.findall(r'class="swatch" style="background:#([0-9a-f]{6})"></span>([^<]+)<',
+                           html)
+        return {name: tuple(bytes.fromhex(hex_colour)) for hex_colour, name in found}
+
+    @staticmethod
+    def check_maps(test, out, metrics):
+        """map.ply and every robot's map.ply: valid, sized as metrics.json says,
+        each robot in its report.html colour, and the merged map holding all."""
+        import math
+        colours = Demo.report_colours(os.path.join(out, "report.html"))
+        names = [r["name"] for r in metrics["robots"]]
+        test.assertEqual(sorted(colours), sorted(names))
+        test.assertEqual(len(set(colours.values())), len(names))
+        for r in metrics["robots"]:
+            points, robot_colours = Demo.read_coloured_ply(os.path.join(out, r["name"], "map.ply"))
+            test.assertEqual(len(points), r["map_points"], r["name"])
+            test.assertGreater(len(points), 1000, r["name"])
+            test.assertEqual(set(robot_colours), {colours[r["name"]]}, r["name"])
+        points, merged_colours = Demo.read_coloured_ply(os.path.join(out, "map.ply"))
+        test.assertEqual(len(points), metrics["map_points"])
+        test.assertEqual(set(merged_colours), set(colours.values()))
+        # Voxel-filtered: where robots overlap they share points, so the merged map is
+        # smaller than its parts, and no two of its points fall in one voxel.
+        test.assertLess(len(points), sum(r["map_points"] for r in metrics["robots"]))
+        voxel = metrics["map_voxel_m"]
+        cells = {tuple(math.floor(c / voxel) for c in p) for p in points}
+        test.assertEqual(len(cells), len(points))
+        return points
+
     def test_demo_runs_the_swarm_and_writes_its_outputs(self):
         with tempfile.TemporaryDirectory() as tmp:
             _, out, _ = run("demo", "--out", tmp)
@@ -275,7 +328,12 @@ class Demo(unittest.TestCase):
             for name in ("report.html", "preview_world.png", "dataset/dataset.yaml",
                          "a/trajectory.tum", "b/graph.g2o", "c/odometry.tum"):
                 self.assertTrue(os.path.exists(os.path.join(tmp, name)), name)
+            # The merged map: every robot's points in its report colour, on the campus.
+            points = self.check_maps(self, tmp, metrics)
+            self.assertGreater(len(points), 10000)
         self.assertIn("ATE collab", out)
+        self.assertIn("map.ply", out)
+        self.assertLess(len(out.splitlines()), 12)
 
 
 class DemoDataset(unittest.TestCase):
@@ -915,6 +973,13 @@ class Run(unittest.TestCase):
         with open(os.path.join(out, "metrics.json")) as f:
             self.assertEqual(json.load(f), self.metrics[0])
 
+    def test_the_map_holds_every_robot_in_its_colour(self):
+        for out, metrics in zip(self.outs, self.metrics):
+            Demo.check_maps(self, out, metrics)
+            for r in metrics["robots"]:
+                # Kept compactly: a VLP-16 keyframe's cloud in a few kilobytes.
+                self.assertLess(r["map_cloud_bytes"], 20000 * r["keyframes"], r["name"])
+
     def test_metrics_name_every_robot_with_its_figures(self):
         robots = self.metrics[0]["robots"]
         self.assertEqual([r["name"] for r in robots], ["a", "b", "c"])
@@ -936,3 +1001,7 @@ class Run(unittest.TestCase):
             with open(os.path.join(self.outs[0], robot, "graph.g2o")) as f1, \
                     open(os.path.join(self.outs[1], robot, "graph.g2o")) as f2:
                 self.assertEqual(f1.read(), f2.read(), robot)
+        for name in ("map.ply", "a/map.ply", "c/map.ply"):
+            with open(os.path.join(self.outs[0], name), "rb") as f1, \
+                    open(os.path.join(self.outs[1], name), "rb") as f2:
+                self.assertEqual(f1.read(), f2.read(), name)

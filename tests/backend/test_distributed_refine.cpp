@@ -326,6 +326,51 @@ TEST(RefineAgent, AgentsPassingValuesByHandRunTheSameRoundsAsTheDriver) {
   }
 }
 
+TEST(RefineAgent, OwnedCostsSumToTheGraphCostAndFallRoundByRound) {
+  // As robots over a network run it: each agent knows only its own poses at
+  // first; a first exchange of separators, then rounds in id order, each
+  // agent's share of the cost taken once every neighbour's values of the
+  // round are in.
+  const PoseGraph start = mapperExample(4);
+  RefineConfig config;
+  config.accelerate = false;
+  std::map<core::RobotId, RefineAgent> agents;
+  for (auto [robot, local] : partitionByRobot(start)) {
+    if (robot == start.nodes().begin()->first.robot) local.fix(start.nodes().begin()->first);
+    agents.emplace(robot, RefineAgent(robot, local, config));
+  }
+  const auto exchange = [&](const auto& outgoing) {
+    for (const auto& [neighbour, poses] : outgoing) agents.at(neighbour).receive(poses);
+  };
+  const auto total = [&] {
+    double shares = 0.0;
+    PoseGraph g = start;
+    for (const auto& [robot, agent] : agents) {
+      shares += agent.ownedCost();
+      for (const auto& [k, T] : agent.estimates()) g.setEstimate(k, T);
+    }
+    EXPECT_NEAR(shares, graphCost(g), 1e-9 * graphCost(g));
+    return shares;
+  };
+  for (auto& [robot, agent] : agents) {
+    std::map<core::RobotId, std::map<core::PoseKey, Eigen::Isometry3d>> first;
+    for (const auto& [neighbour, keys] : agent.separators())
+      for (const core::PoseKey& k : keys) first[neighbour][k] = agent.estimates().at(k);
+    exchange(first);
+  }
+  double cost = total();
+  EXPECT_NEAR(cost, graphCost(start), 1e-9 * cost);
+  for (auto& [robot, agent] : agents) agent.endRound(true);
+  for (int round = 0; round < 5; ++round) {
+    for (auto& [robot, agent] : agents) agent.beginRound();
+    for (auto& [robot, agent] : agents) exchange(agent.step().outgoing);
+    const double next = total();
+    EXPECT_LT(next, cost) << "round " << round;
+    cost = next;
+    for (auto& [robot, agent] : agents) agent.endRound(true);
+  }
+}
+
 TEST(RefineAgent, AFactorToAnUnknownNeighbourPoseWaitsForItsValue) {
   const PoseGraph graph = mapperExample(2);
   const core::RobotId b(1);

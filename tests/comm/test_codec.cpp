@@ -1,6 +1,7 @@
 #include <Eigen/Eigenvalues>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <random>
 #include <string>
@@ -176,6 +177,51 @@ TEST(Codec, SeparatorPosesAreUnder30BytesEachOnRealTrajectories) {
   std::size_t one_bytes = 0;
   (void)roundTrip(header(3, 1), one, &one_bytes);
   EXPECT_LE(one_bytes, 30u + 16u);
+}
+
+TEST(Codec, AsDeliveredHoldsExactlyWhatTheReceiverDecodes) {
+  // A verifier keeps the loop it sends as its receiver will read it: both
+  // robots of a pair then hold bit-identical factors.
+  const registration::VerificationResult& v = realVerification();
+  LoopMeasurement m;
+  m.query = keyframe(1204);
+  m.match = keyframe(377);
+  m.T_match_query = v.T_candidate_query;
+  m.covariance = v.covariance;
+  const LoopMeasurement kept = std::get<LoopMeasurement>(asDelivered(m));
+  const LoopMeasurement received = roundTrip(header(2, 0, 40000), m);
+  EXPECT_TRUE(kept.T_match_query.isApprox(received.T_match_query, 0.0));
+  EXPECT_TRUE(kept.covariance == received.covariance);
+  EXPECT_FALSE(kept.T_match_query.isApprox(m.T_match_query, 1e-12));  // it was rounded
+  // Delivered twice is delivered once: the records are fixed points of the codec.
+  const LoopMeasurement twice = std::get<LoopMeasurement>(asDelivered(kept));
+  EXPECT_TRUE(twice.T_match_query.isApprox(kept.T_match_query, 1e-12));
+}
+
+TEST(Codec, PreciseSeparatorPosesKeepRotationsHundredsOfTimesFiner) {
+  PoseEstimates m;
+  m.precise = true;
+  m.state.stage = OptimisationStage::refine;
+  const auto& gt = test::kittiLidarPoses();
+  for (std::size_t i = 0; i < 100; ++i) m.poses.emplace_back(keyframe(7 * i), gt[30 * i]);
+  std::size_t bytes = 0;
+  const PoseEstimates got = roundTrip(header(2, 0), m, &bytes);
+  EXPECT_TRUE(got.precise);
+  EXPECT_LE(bytes, 30u * m.poses.size());
+  ASSERT_EQ(got.poses.size(), m.poses.size());
+  double worst = 0.0;
+  for (std::size_t i = 0; i < m.poses.size(); ++i)
+    worst = std::max(worst, rotationError(got.poses[i].second, m.poses[i].second));
+  EXPECT_LT(worst, 2e-7);  // the ground truth's own rounding to 6 digits shows here
+  // The 19-byte records of the same poses are far coarser.
+  m.precise = false;
+  const PoseEstimates coarse = roundTrip(header(2, 0), m);
+  double coarse_worst = 0.0;
+  for (std::size_t i = 0; i < m.poses.size(); ++i)
+    coarse_worst = std::max(coarse_worst, rotationError(coarse.poses[i].second, m.poses[i].second));
+  EXPECT_GT(coarse_worst, 100.0 * worst);
+  std::printf("precise records: rotation within %.1e rad, 19-byte records %.1e rad\n", worst,
+              coarse_worst);
 }
 
 TEST(Codec, RelaxedRotationsKeepFourDecimals) {

@@ -278,5 +278,39 @@ TEST_F(PlyTest, WriterRejectsInconsistentClouds) {
   EXPECT_FALSE(std::filesystem::exists(path));
 }
 
+TEST_F(PlyTest, ColouredPointsInBothEncodings) {
+  const std::vector<Eigen::Vector3f> points{{1, 2, 3}, {-4.5f, 0, 1e-7f}};
+  const std::vector<Rgb> colours{{0x1f, 0x77, 0xb4}, {255, 0, 14}};
+  const std::string ascii = (dir_ / "a.ply").string();
+  writeColouredPly(ascii, points, colours, {PlyEncoding::kAscii});
+  EXPECT_EQ(test::readBytes(ascii),
+            "ply\nformat ascii 1.0\ncomment written by dcl-slam\nelement vertex 2\n"
+            "property float x\nproperty float y\nproperty float z\nproperty uchar red\n"
+            "property uchar green\nproperty uchar blue\nend_header\n"
+            "1 2 3 31 119 180\n-4.5 0 1e-07 255 0 14\n");
+  const std::string binary = (dir_ / "b.ply").string();
+  writeColouredPly(binary, points, colours);
+  const std::string bytes = test::readBytes(binary);
+  const std::size_t data = bytes.find("end_header\n") + 11;
+  ASSERT_EQ(bytes.size() - data, 2u * 15u);  // three floats and three bytes a point
+  EXPECT_EQ(bytes.substr(data + 12, 3), "\x1f\x77\xb4");
+  EXPECT_EQ(bytes.substr(data + 27, 3), std::string("\xff\x00\x0e", 3));
+  // The reader takes the points and skips the colours, in either encoding.
+  core::PointCloud expected;
+  expected.points = points;
+  EXPECT_TRUE(test::sameCloud(readPly(ascii), expected));
+  EXPECT_TRUE(test::sameCloud(readPly(binary), expected));
+}
+
+TEST_F(PlyTest, ColouredWriterWantsAColourAPoint) {
+  const std::vector<Eigen::Vector3f> points{{1, 2, 3}, {4, 5, 6}};
+  const std::vector<Rgb> colours{{1, 2, 3}};
+  const std::string path = (dir_ / "bad.ply").string();
+  const std::string message = fileError([&] { writeColouredPly(path, points, colours); });
+  EXPECT_TRUE(contains(message, path)) << message;
+  EXPECT_TRUE(contains(message, "2 points but 1 colours")) << message;
+  EXPECT_FALSE(std::filesystem::exists(path));
+}
+
 }  // namespace
 }  // namespace dcl::io

@@ -4,6 +4,7 @@
 // to the true relative pose, and both robots must keep the same loops.
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <spdlog/spdlog.h>
 
 #include <dcl/comm/sim_radio.hpp>
 #include <dcl/core/se3.hpp>
@@ -32,6 +34,7 @@ struct SwarmRun {
 };
 
 SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_config = {}) {
+  if (std::getenv("DCL_TEST_DEBUG")) spdlog::set_level(spdlog::level::debug);
   SwarmRun run;
   run.radio = std::make_unique<comm::SimRadio>(radio_config);
   std::vector<std::unique_ptr<io::ScanSource>> scans = sim::openDatasetScans(convoy.spec);
@@ -42,8 +45,15 @@ SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_con
   }
   const std::size_t frames = scans[0]->size();
   double t = 0.0;
+  // Messages move every 20 ms (as in swarm runs), scans come at their stamps.
+  const auto tickAll = [&](double time) {
+    run.radio->advanceTo(time);
+    for (auto& node : run.nodes) node->tick(time);
+  };
   for (std::size_t i = 0; i < frames; ++i) {
-    t = scans[0]->stamp(i);
+    const double stamp = scans[0]->stamp(i);
+    for (; t + 0.02 < stamp; t += 0.02) tickAll(t + 0.02);
+    t = stamp;
     for (std::size_t r = 0; r < scans.size(); ++r) {  // links follow the true positions
       const core::RobotId id(static_cast<std::uint8_t>(r));
       run.radio->setPosition(id, run.ground_truth[r].pose(i).translation());
@@ -54,10 +64,7 @@ SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_con
       run.nodes[r]->tick(t);
     }
   }
-  for (int extra = 1; extra <= 150; ++extra) {  // 15 s for the last answers and rounds
-    run.radio->advanceTo(t + 0.1 * extra);
-    for (auto& node : run.nodes) node->tick(t + 0.1 * extra);
-  }
+  for (int extra = 1; extra <= 500; ++extra) tickAll(t + 0.02 * extra);  // 10 s to finish
   return run;
 }
 
@@ -150,6 +157,46 @@ TEST(RobotNode, OptimisationRoundsPutTheRobotsInOneFrame) {
     ASSERT_TRUE(robot.ate_rmse_joint);
     EXPECT_LT(*robot.ate_rmse_joint, 0.3);
     EXPECT_LT(*robot.ate_rmse, 0.3);
+  }
+}
+
+TEST(RobotNode, RefinementAfterDgsLowersTheCostAndBothRobotsDecideAlike) {
+  const SwarmRun& run = defaultRun();
+  const auto& a = run.nodes[0]->counters();
+  const auto& b = run.nodes[1]->counters();
+  ASSERT_TRUE(a.contains("refine_steps"));
+  ASSERT_TRUE(b.contains("refine_steps"));
+  EXPECT_GT(a.at("refine_steps"), 0.0);
+  // Both take every keep, restart and stop decision from the same shared costs.
+  EXPECT_EQ(a.at("refine_steps"), b.at("refine_steps"));
+  EXPECT_EQ(a.at("dgs_rounds"), b.at("dgs_rounds"));
+  ASSERT_TRUE(a.contains("refine_cost_ratio_last"));
+  EXPECT_EQ(a.at("refine_cost_ratio_last"), b.at("refine_cost_ratio_last"));
+  // DGS solves a linearised problem; the refinement lowers the true cost from there.
+  EXPECT_LT(a.at("refine_cost_ratio_last"), 1.0);
+  std::printf("refinement: %.0f steps, cost %.4f of DGS's in the last round\n",
+              a.at("refine_steps"), a.at("refine_cost_ratio_last"));
+  EXPECT_FALSE(a.contains("refine_timeouts"));
+  EXPECT_FALSE(a.contains("refine_cut_short"));
+}
+
+TEST(RobotNode, WithAThirdOfMessagesLostBothStillEndInOneFrame) {
+  // Descriptors and loops are re-sent until acknowledged; DGS and refinement
+  // messages are not: a robot waits a little for a lost one, then steps on
+  // (DGS) or sends its step again (refinement).
+  comm::SimRadioConfig lossy;
+  lossy.drop_rate = 0.3;
+  lossy.seed = 11;
+  const SwarmRun run = drive(convoy(), lossy);
+  for (const auto& node : run.nodes) {
+    EXPECT_GE(node->counters().at("dgs_rounds"), 1.0) << core::robotName(node->id());
+    EXPECT_FALSE(accepted(*node).empty());
+  }
+  EXPECT_EQ(accepted(*run.nodes[0]), accepted(*run.nodes[1]));
+  const std::vector<eval::RobotMetrics> m = eval::evaluateRun(summaryOf(run));
+  for (const eval::RobotMetrics& robot : m) {
+    ASSERT_TRUE(robot.ate_rmse_joint);
+    EXPECT_LT(*robot.ate_rmse_joint, 0.3);
   }
 }
 

@@ -143,9 +143,50 @@ class RefineAgent {
   /// Current estimates T_world_node of the own nodes (this round's after step()).
   [[nodiscard]] const std::map<core::PoseKey, Eigen::Isometry3d>& estimates() const;
 
+  /// This robot's share of the graph's cost: the chi-square of the factors it
+  /// owns (both ends its own, or an inter-robot factor whose other robot has a
+  /// higher id) at its current estimates and the neighbours' latest values.
+  /// Every factor has exactly one owner, so the shares of a group's robots sum
+  /// to the whole graph's cost: all a group needs to share for RefineSchedule.
+  [[nodiscard]] double ownedCost() const;
+
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
+};
+
+/// The group-wide decisions of a refinement, made alike by every robot from
+/// the same sequence of whole-graph costs: the momentum of the next round,
+/// whether a round is kept or undone (adaptive restart), and when to stop
+/// (the relative tolerance over the window, or max_rounds).
+class RefineSchedule {
+ public:
+  /// Starts at the graph's cost before the first round.
+  RefineSchedule(const RefineConfig& config, double initial_cost);
+
+  /// The momentum the next round starts with (RefineAgent::beginRound).
+  [[nodiscard]] double momentum() const;
+  /// Ends a round whose graph cost came to `cost`; returns whether it is kept
+  /// (RefineAgent::endRound).
+  bool endRound(double cost);
+  /// The refinement has converged or used its rounds.
+  [[nodiscard]] bool done() const;
+  [[nodiscard]] bool converged() const { return converged_; }
+  [[nodiscard]] int rounds() const { return rounds_; }
+  [[nodiscard]] int restarts() const { return restarts_; }
+  /// The kept cost: the initial one, then the last kept round's.
+  [[nodiscard]] double cost() const { return kept_costs_.back(); }
+  /// The kept cost after each round, never increasing.
+  [[nodiscard]] const std::vector<double>& roundCosts() const { return round_costs_; }
+
+ private:
+  RefineConfig config_;
+  double t_ = 1.0;  ///< Nesterov's sequence; 1: no momentum
+  std::vector<double> kept_costs_;
+  std::vector<double> round_costs_;
+  int rounds_ = 0;
+  int restarts_ = 0;
+  bool converged_ = false;
 };
 
 /// What a refinement did. Costs are g2o's chi-square of the whole graph (graphCost).

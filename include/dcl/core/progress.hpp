@@ -2,6 +2,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -43,6 +44,50 @@ class ProgressBar {
   Clock::time_point start_;
   Clock::time_point last_draw_;
 };
+
+/// Several lines of progress drawn over themselves (one per robot of a swarm
+/// run) on a terminal, at most five times a second: more would cost the run
+/// time and flicker. Silent when the stream is not a terminal, like
+/// ProgressBar. Lines longer than the terminal is wide are cut, since a
+/// wrapped line would throw off the redraw.
+class ProgressBoard {
+ public:
+  explicit ProgressBoard(std::FILE* stream = stderr);
+  ProgressBoard(const ProgressBoard&) = delete;
+  ProgressBoard& operator=(const ProgressBoard&) = delete;
+
+  /// Whether draw() would draw now: on a terminal, unfinished, and a fifth of
+  /// a second after the last draw. Callers build their lines only then.
+  [[nodiscard]] bool due() const;
+
+  /// Draws `lines` over the ones drawn before (when due()).
+  void draw(std::span<const std::string> lines);
+
+  /// Draws `lines` as the final state and leaves them on screen.
+  void finish(std::span<const std::string> lines);
+
+  /// Whether this board draws at all (only on a terminal).
+  [[nodiscard]] bool enabled() const { return enabled_; }
+
+  /// Seconds since the board was made (for rates and times left).
+  [[nodiscard]] double elapsed() const;
+
+ private:
+  using Clock = std::chrono::steady_clock;
+  void write(std::span<const std::string> lines);
+
+  std::FILE* stream_;
+  bool enabled_;
+  bool finished_ = false;
+  std::size_t drawn_ = 0;  ///< lines on screen from the last draw
+  Clock::time_point start_;
+  Clock::time_point last_draw_;
+};
+
+/// The bytes that replace `previous` lines just drawn (the cursor at the start
+/// of the line below them) by `lines`: cursor up, each line cut to `width`
+/// characters (0: uncut) and cleared to its end, then everything below cleared.
+std::string redrawText(std::size_t previous, std::span<const std::string> lines, std::size_t width);
 
 /// The text of one progress line, without terminal control characters:
 /// "label [#####.....]  50/100 frames  12.5 frames/s  eta 0:04  note".

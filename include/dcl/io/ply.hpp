@@ -12,9 +12,12 @@
 /// float type are seconds and of integer type nanoseconds; times beyond 1e6 s
 /// are absolute and are made relative to the earliest point.
 
+#include <Eigen/Core>
+#include <span>
 #include <string>
 
 #include <dcl/core/point_cloud.hpp>
+#include <dcl/io/image.hpp>
 
 namespace dcl::io {
 
@@ -44,5 +47,13 @@ core::PointCloud readPly(const std::string& path, const PlyReadOptions& options 
 /// core::FileError on a write failure or an inconsistent cloud.
 void writePly(const std::string& path, const core::PointCloud& cloud,
               const PlyWriteOptions& options = {});
+
+/// Writes points with one colour each (a map coloured by robot) as the
+/// `vertex` element of a PLY file: float x y z, then uchar red green blue, the
+/// names CloudCompare, MeshLab and Open3D show as colours (readPly reads the
+/// points and skips the colours). Throws core::FileError on a write failure or
+/// when the two lists differ in length.
+void writeColouredPly(const std::string& path, std::span<const Eigen::Vector3f> points,
+                      std::span<const Rgb> colours, const PlyWriteOptions& options = {});
 
 }  // namespace dcl::io

@@ -6,6 +6,8 @@
 /// (stage 2). A robot sends its own separators only, so the keyframe ids are
 /// the sender's.
 
+#include <Eigen/Geometry>
+#include <map>
 #include <optional>
 
 #include <dcl/backend/dgs.hpp>
@@ -18,5 +20,26 @@ comm::Body toWire(const backend::DgsMessage& message);
 
 /// The DGS message a received DGS body carries; none for other kinds.
 std::optional<backend::DgsMessage> fromWire(const comm::Message& message);
+
+/// One message of the distributed refinement that follows DGS in a round
+/// (backend::RefineAgent, backend::RefineSchedule): in refinement step `step`,
+/// either the sender's separator poses for the receiver (after its block step;
+/// step 0: its DGS estimates) or the sender's share of the graph's cost
+/// (RefineAgent::ownedCost) at the end of that step. On the wire: a
+/// comm::PoseEstimates, or a comm::DgsState carrying the share in `change`,
+/// both with stage `refine`.
+struct RefineMessage {
+  core::RobotId from;
+  core::RobotId to;
+  std::uint32_t round = 0;
+  std::uint32_t step = 0;
+  std::map<core::PoseKey, Eigen::Isometry3d> poses;  ///< the sender's own poses
+  std::optional<float> cost_share;                   ///< set: a share, not poses
+};
+
+comm::Body toWire(const RefineMessage& message);
+
+/// The refinement message a received body carries; none for other kinds.
+std::optional<RefineMessage> refineFromWire(const comm::Message& message);
 
 }  // namespace dcl::robot

@@ -26,7 +26,13 @@
 /// exchange through comm's messages) whenever the group's loops changed since
 /// its last round; the others join when its first message reaches them. The
 /// anchor's first pose stays where it is, so every member ends in the
-/// anchor's frame. A round abandoned (a member out of range, a timeout)
+/// anchor's frame. DGS's answer solves a linearised problem; the round goes on
+/// with the distributed refinement (backend::RefineAgent) from it: in each
+/// step a robot solves its block once its lower-id neighbours have sent their
+/// separators of that step, sends its own, and shares its part of the graph's
+/// cost; every member takes the same keep, restart and stop decisions
+/// (backend::RefineSchedule) from the same shares. A refinement message lost
+/// is sent again while the robot waits. A round abandoned (a member out of range, a timeout)
 /// changes nothing; a robot alone keeps its own frame. Keyframes added after
 /// a round follow the last optimised one by odometry.
 ///
@@ -44,6 +50,7 @@
 #include <vector>
 
 #include <dcl/backend/dgs.hpp>
+#include <dcl/backend/distributed_refine.hpp>
 #include <dcl/backend/pcm.hpp>
 #include <dcl/backend/pose_graph.hpp>
 #include <dcl/comm/messenger.hpp>
@@ -72,7 +79,28 @@ struct RobotConfig {
   /// against the same trajectories to decide alike.
   backend::PcmConfig pcm;
   comm::MessengerConfig messenger;  ///< heartbeats, neighbours, retransmission
-  backend::DgsConfig dgs;           ///< the distributed optimisation's stages
+  /// The distributed optimisation's stages, at most 100 steps each in a
+  /// round (the refinement goes on from wherever DGS stopped).
+  backend::DgsConfig dgs = [] {
+    backend::DgsConfig c;
+    c.max_rotation_iterations = 100;
+    c.max_pose_iterations = 100;
+    return c;
+  }();
+  /// The distributed refinement after DGS in every round (max_rounds 0: DGS
+  /// alone). Fewer rounds than an offline refinement: rounds repeat as loops
+  /// arrive, and each refinement round costs the group a message chain.
+  backend::RefineConfig refine = [] {
+    backend::RefineConfig c;
+    c.max_rounds = 50;
+    return c;
+  }();
+  /// Noise added to every verified loop's covariance (standard deviations, m
+  /// and rad): the registration's own covariance sees only how well the two
+  /// clouds constrain each other, not the errors of the submap it aligned to,
+  /// and a loop trusted to micrometres bends the odometry around it.
+  double loop_sigma_translation = 0.02;
+  double loop_sigma_rotation = 0.0035;  ///< 0.2 deg
   /// s between the end of one optimisation round and the start of the next.
   double optimise_period = 5.0;
   /// s after which a round that has not finished is abandoned.

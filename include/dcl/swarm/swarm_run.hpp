@@ -6,7 +6,9 @@
 /// then every robot, in parallel, takes in its messages and its scans of the
 /// step; then what the robots sent goes to the radio in robot order. Robots
 /// share nothing but the radio, and the radio sees the same sends in the same
-/// order whatever the thread count, so a run is deterministic.
+/// order whatever the thread count, so a run is deterministic. Each robot's
+/// new keyframe clouds are kept, compact, for the map (merged_map.hpp), and a
+/// progress callback sees every robot's figures after each step.
 
 #include <Eigen/Geometry>
 #include <cstddef>
@@ -22,6 +24,7 @@
 #include <dcl/core/trajectory.hpp>
 #include <dcl/io/scan_source.hpp>
 #include <dcl/robot/robot_node.hpp>
+#include <dcl/swarm/merged_map.hpp>
 
 namespace dcl::swarm {
 
@@ -33,6 +36,7 @@ struct SwarmConfig {
   double drain = 5.0;          ///< s the radio keeps running after the last scan
   std::size_t max_frames = 0;  ///< scans per robot at most (0: all)
   int threads = 0;             ///< robots processed at once (0: every core)
+  MapConfig map;               ///< the keyframe clouds kept for the map (0: none)
 };
 
 /// One robot of the swarm: its scans, when it starts, and where it truly is
@@ -52,7 +56,9 @@ struct MemberResult {
   std::string name;
   std::size_t frames = 0;
   std::vector<core::Keyframe> keyframes;  ///< without their clouds
-  backend::PoseGraph graph;               ///< robot::RobotNode::graph() at the end
+  /// Their clouds for the map (none when SwarmConfig::map keeps no map).
+  KeyframeClouds map_clouds;
+  backend::PoseGraph graph;  ///< robot::RobotNode::graph() at the end
   std::vector<robot::InterLoop> inter_loops;
   std::map<std::string, double> counters;
   comm::RobotTraffic traffic;
@@ -66,8 +72,27 @@ struct SwarmResult {
   std::size_t radio_events = 0;
 };
 
-/// Progress after each step: simulated time and every robot's frames done.
-using SwarmProgress = std::function<void(double time, const std::vector<std::size_t>& frames)>;
+/// One robot's figures while the run goes on.
+struct RobotProgress {
+  std::string name;
+  std::size_t frames = 0;        ///< scans played
+  std::size_t total_frames = 0;  ///< scans it will play
+  std::size_t keyframes = 0;
+  std::size_t inter_loops = 0;  ///< inter-robot loops PCM keeps now
+  std::size_t bytes_sent = 0;   ///< bytes transmitted so far (a broadcast once)
+  bool left = false;            ///< it has left the swarm
+};
+
+/// Where a run stands after a step.
+struct SwarmStatus {
+  double time = 0.0;                  ///< s of simulated time done
+  double end = 0.0;                   ///< s of simulated time the run takes
+  std::vector<RobotProgress> robots;  ///< in member order
+};
+
+/// Called after each step, between the robots' parallel steps (nothing runs
+/// meanwhile); it should return quickly, as it is called 50 times a simulated second.
+using SwarmProgress = std::function<void(const SwarmStatus& status)>;
 
 /// Runs the members to the end of their scans and `drain` seconds more.
 /// Throws core::Error for an invalid configuration or no member.

@@ -1,0 +1,372 @@
+// `dcl-slam robot`: one robot of a dataset in this process, over Cyclone DDS.
+// It plays its scans on the swarm clock, which every process of the swarm
+// derives from the same epoch and rate, so that robots started separately
+// (by `dcl-slam swarm`, or by hand on several machines) meet as in the
+// dataset. It never skips a scan: a process that falls behind catches up as
+// fast as it can and reports how late it got. After its last scan it lingers
+// so that the exchanges and optimisation rounds under way with its peers can
+// finish, then writes the outputs `dcl-slam run` writes per robot, and
+// robot.json (robot_outputs.hpp).
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdint>
+#include <cstdio>
+#include <functional>
+#include <limits>
+#include <map>
+#include <memory>
+#include <optional>
+#include <ratio>
+#include <span>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <dcl/comm/dds_transport.hpp>
+#include <dcl/core/error.hpp>
+#include <dcl/core/progress.hpp>
+#include <dcl/io/dataset.hpp>
+#include <dcl/robot/robot_node.hpp>
+#include <dcl/sim/sim_source.hpp>
+
+#include "commands.hpp"
+#include "process.hpp"
+#include "robot_outputs.hpp"
+
+namespace dcl::apps {
+namespace {
+
+using WallClock = std::chrono::system_clock;
+
+/// s of wall time between two ticks while nothing is due: messages are
+/// handled within this (the DDS waitset wakes the loop sooner when a sample
+/// arrives), and a signal is noticed within it.
+constexpr double kTickPeriod = 0.005;
+
+/// The transports a robot process can use (only one so far).
+constexpr const char* kTransports = "dds";
+
+struct RobotOptions {
+  std::string dataset;
+  std::string robot;
+  std::string out = "out/robot";
+  std::string transport = "dds";
+  double rate = 1.0;            ///< swarm seconds per wall second
+  double epoch = 0.0;           ///< s since the Unix epoch at swarm time 0; 0: now
+  double linger = 10.0;         ///< s of swarm time after the last scan
+  std::size_t max_frames = 0;   ///< scans at most, 0: all
+  double meter_interval = 1.0;  ///< s of swarm time per traffic bin (the radio section's)
+  comm::DdsConfig dds;
+  bool json = false;
+};
+
+// ---- time --------------------------------------------------------------------------
+
+/// The clock every process of a swarm shares: (wall clock - epoch) * rate.
+struct SwarmClock {
+  double epoch = 0.0;  ///< s since the Unix epoch
+  double rate = 1.0;
+
+  [[nodiscard]] double now() const { return (unixNow() - epoch) * rate; }
+  /// Wall milliseconds from swarm time `from` to `to` (0 when `to` has passed).
+  [[nodiscard]] std::chrono::milliseconds wallUntil(double from, double to) const {
+    const double ms = std::ceil(std::max(0.0, to - from) / rate * 1000.0);
+    return std::chrono::milliseconds(static_cast<std::int64_t>(ms));
+  }
+};
+
+// ---- the metered transport ------------------------------------------------------------
+
+/// DdsTransport with its bytes counted. DDS keeps no byte counts, and the
+/// report needs what this robot put on the network (a broadcast once, as the
+/// simulated radio counts it) and what reached it, per kind over time.
+class MeteredTransport final : public comm::Transport {
+ public:
+  MeteredTransport(comm::DdsTransport& dds, double interval) : dds_(&dds), interval_(interval) {}
+
+  [[nodiscard]] core::RobotId self() const override { return dds_->self(); }
+
+  void send(std::optional<core::RobotId> to, comm::MessageKind kind,
+            std::span<const std::uint8_t> bytes) override {
+    sent_ += bytes.size();
+    const auto bin = static_cast<std::size_t>(std::max(0.0, now_) / interval_);
+    std::vector<std::size_t>& series = over_time_[std::string(comm::name(kind))];
+    if (series.size() <= bin) series.resize(bin + 1, 0);
+    series[bin] += bytes.size();
+    dds_->send(to, kind, bytes);
+  }
+
+  std::vector<comm::Datagram> receive() override {
+    std::vector<comm::Datagram> in = dds_->receive();
+    for (const comm::Datagram& d : in) received_ += d.bytes.size();
+    return in;
+  }
+
+  /// The swarm time sends are binned at from now on.
+  void setTime(double now) { now_ = now; }
+
+  [[nodiscard]] std::size_t sent() const { return sent_; }
+  [[nodiscard]] std::size_t received() const { return received_; }
+  [[nodiscard]] const std::map<std::string, std::vector<std::size_t>>& overTime() const {
+    return over_time_;
+  }
+
+ private:
+  comm::DdsTransport* dds_;
+  double interval_;
+  double now_ = 0.0;
+  std::size_t sent_ = 0;
+  std::size_t received_ = 0;
+  std::map<std::string, std::vector<std::size_t>> over_time_;
+};
+
+// ---- the run ------------------------------------------------------------------------------
+
+void validate(const RobotOptions& o) {
+  if (o.transport != "dds")
+    throw core::Error(fmt::format("unknown transport '{}' (known: {})", o.transport, kTransports));
+  if (!(o.rate > 0.0) || !std::isfinite(o.rate))
+    throw core::Error("--rate must be a finite number > 0");
+  if (!(o.epoch >= 0.0) || !std::isfinite(o.epoch))
+    throw core::Error("--epoch must be a finite number of seconds since 1970 (0: now)");
+  if (!(o.linger >= 0.0) || !std::isfinite(o.linger))
+    throw core::Error("--linger must be a finite number >= 0");
+  try {
+    comm::validate(o.dds);
+  } catch (const core::Error& e) {
+    throw core::Error(std::string(e.what()) +
+                      " (from --domain, --swarm, --interface or the config's dds section)");
+  }
+}
+
+/// The dataset index of robot `name`; the error lists the robots there are.
+std::size_t robotIndex(const io::DatasetSpec& spec, const std::string& name) {
+  if (const auto index = spec.robotIndex(name)) return *index;
+  std::string known;
+  for (const io::RobotSpec& r : spec.robots) known += (known.empty() ? "" : ", ") + r.name;
+  throw core::Error(
+      fmt::format("dataset {} has no robot '{}' (robots: {})", spec.folder, name, known));
+}
+
+/// One robot process's life, from joining the swarm to its outputs.
+struct RobotPlayer {
+  const RobotOptions& o;
+  io::DatasetSpec spec;
+  std::size_t index;
+  std::unique_ptr<io::ScanSource> scans;
+  std::size_t frames;
+  SwarmClock clock;
+  std::uint32_t incarnation;
+  comm::DdsTransport dds;
+  MeteredTransport metered;
+  robot::RobotNode node;
+  std::size_t next = 0;                                   ///< the next scan
+  double max_lag = 0.0;                                   ///< s of swarm time
+  double joined_at = 0.0;                                 ///< s since the Unix epoch
+  double now = -std::numeric_limits<double>::infinity();  ///< the swarm clock at the last look
+
+  RobotPlayer(const RobotOptions& options, io::DatasetSpec dataset, std::size_t robot,
+              const robot::RobotConfig& config)
+      : o(options),
+        spec(std::move(dataset)),
+        index(robot),
+        scans(sim::openRobotScans(spec, index)),
+        frames(o.max_frames > 0 ? std::min(o.max_frames, scans->size()) : scans->size()),
+        clock{o.epoch > 0.0 ? o.epoch : unixNow(), o.rate},
+        incarnation(clockIncarnation()),
+        dds(core::RobotId(static_cast<std::uint8_t>(index)), o.dds),
+        metered(dds, o.meter_interval),
+        node(metered, config, incarnation),
+        joined_at(unixNow()) {}
+
+  /// s on the swarm clock at which scan `i` is due.
+  [[nodiscard]] double due(std::size_t i) const {
+    return spec.robots[index].start_time + scans->stamp(i);
+  }
+
+  /// The swarm clock, never going back (the wall clock may be stepped; the
+  /// node's timers need a non-decreasing time).
+  double look() {
+    now = std::max(now, clock.now());
+    metered.setTime(now);
+    return now;
+  }
+
+  void tick() { node.tick(look()); }
+
+  /// Waits for the epoch without ticking: the swarm clock starts at 0.
+  void waitForEpoch() {
+    while (stopSignal() == 0 && look() < 0.0)
+      std::this_thread::sleep_for(
+          std::min(clock.wallUntil(now, 0.0), std::chrono::milliseconds(100)));
+  }
+
+  void feed() {
+    max_lag = std::max(max_lag, look() - due(next));
+    node.addScan(scans->stamp(next), scans->scan(next));
+    ++next;
+  }
+
+  /// Sleeps until `until` (swarm time), a sample arrives, or a tick is due.
+  void sleep(double until) {
+    const auto tick = std::chrono::milliseconds(static_cast<std::int64_t>(kTickPeriod * 1000.0));
+    dds.wait(std::min(clock.wallUntil(now, until), tick));
+  }
+
+  std::string note() const {
+    const auto& c = node.counters();
+    const auto count = [&](const char* name) {
+      const auto it = c.find(name);
+      return it == c.end() ? 0.0 : it->second;
+    };
+    return fmt::format("t = {:.0f} s, {} keyframes, {} inter loops kept, lag {:.1f} s", now,
+                       node.keyframes().size(), count("inter_loops_accepted"), max_lag);
+  }
+
+  /// Plays the scans and lingers; returns false when a signal cut it short.
+  bool run() {
+    core::ProgressBar progress("robot " + o.robot, frames, "frames");
+    waitForEpoch();
+    double end = std::numeric_limits<double>::infinity();
+    while (stopSignal() == 0) {
+      if (next < frames && due(next) <= look()) {
+        feed();  // late scans one after the other, with a tick between them
+        tick();
+        if (progress.enabled()) progress.update(next, note());
+        continue;
+      }
+      if (next == frames && !std::isfinite(end)) end = now + o.linger;
+      if (now >= end) break;
+      tick();
+      if (progress.enabled()) progress.update(next, note());
+      sleep(next < frames ? std::min(due(next), end) : end);
+    }
+    progress.finish();
+    return stopSignal() == 0;
+  }
+
+  [[nodiscard]] RobotOutputs outputs(bool interrupted) const {
+    RobotOutputs out;
+    const core::RobotId self(static_cast<std::uint8_t>(index));
+    for (const core::Keyframe& k : node.keyframes()) {
+      out.estimate.push_back(k.stamp, node.estimate(k.id));
+      out.odometry.push_back(k.stamp, k.T_odom_keyframe);
+    }
+    out.graph = node.graph();
+    RobotReport& r = out.report;
+    r.name = o.robot;
+    r.robot = self.value();
+    r.dataset = o.dataset;
+    r.transport = o.transport;
+    r.swarm = o.dds.swarm;
+    r.incarnation = incarnation;
+    r.rate = clock.rate;
+    r.epoch = clock.epoch;
+    r.frames = next;
+    r.frames_planned = frames;
+    r.keyframes = node.keyframes().size();
+    r.max_lag = max_lag;
+    r.wall_time = unixNow() - joined_at;
+    r.duration = std::max(0.0, now);
+    r.interrupted = interrupted;
+    r.bytes_sent = metered.sent();
+    r.bytes_received = metered.received();
+    const auto kBps = [&](std::size_t bytes) {
+      return r.duration > 0.0 ? static_cast<double>(bytes) / 1000.0 / r.duration : 0.0;
+    };
+    r.transmit_kBps = kBps(r.bytes_sent);
+    r.receive_kBps = kBps(r.bytes_received);
+    r.failed_writes = dds.failedWrites();
+    r.meter_interval = o.meter_interval;
+    r.sent_over_time = metered.overTime();
+    r.counters = node.counters();
+    for (const robot::InterLoop& loop : node.interLoops())
+      r.inter_loops.push_back({loop.factor.from, loop.factor.to, loop.accepted});
+    r.messenger = messengerJson(node.messenger().stats());
+    return out;
+  }
+};
+
+void printSummary(const RobotReport& r, const std::string& folder) {
+  const auto count = [&](const char* name) {
+    const auto it = r.counters.find(name);
+    return it == r.counters.end() ? 0.0 : it->second;
+  };
+  fmt::print(
+      "robot {}: {} of {} frames, {} keyframes, loops {} intra + {}/{} inter kept; sent {:.1f} kB "
+      "({:.2f} kB/s), received {:.1f} kB ({:.2f} kB/s); max lag {:.2f} s; {:.1f} s wall{}\n",
+      r.name, r.frames, r.frames_planned, r.keyframes, count("intra_loops"),
+      count("inter_loops_accepted"), count("inter_loops_accepted") + count("inter_loops_rejected"),
+      static_cast<double>(r.bytes_sent) / 1000.0, r.transmit_kBps,
+      static_cast<double>(r.bytes_received) / 1000.0, r.receive_kBps, r.max_lag, r.wall_time,
+      r.interrupted ? ", INTERRUPTED" : "");
+  fmt::print("outputs in {}\n", folder);
+}
+
+void runRobot(const RobotOptions& o, const AppConfig& config) {
+  validate(o);
+  const StopSignals signals;
+  io::DatasetSpec spec = io::readDataset(o.dataset);
+  const std::size_t index = robotIndex(spec, o.robot);
+  if (index > 254) throw core::Error("a swarm holds robots 0..254: '" + o.robot + "' is past it");
+  RobotPlayer player(o, std::move(spec), index, robotConfig(config));
+  const bool finished = player.run();
+  const RobotOutputs outputs = player.outputs(!finished);
+  const std::string folder = o.out + "/" + o.robot;
+  writeRobotOutputs(folder, outputs);
+  if (o.json)
+    fmt::print("{}\n", toJson(outputs.report).dump(2));
+  else
+    printSummary(outputs.report, folder);
+  std::fflush(stdout);
+  if (!finished) {
+    std::fprintf(stderr, "dcl-slam robot %s: stopped by signal %d; outputs so far in %s\n",
+                 o.robot.c_str(), stopSignal(), folder.c_str());
+    throw CLI::RuntimeError(128 + stopSignal());
+  }
+}
+
+}  // namespace
+
+void addRobotCommand(CLI::App& app, const AppConfig& config) {
+  auto o = std::make_shared<RobotOptions>();
+  o->dds = config.dds;
+  o->meter_interval = config.radio.meter_interval;
+  CLI::App* cmd = app.add_subcommand(
+      "robot",
+      "one robot of a dataset in this process over Cyclone DDS: plays its scans on the swarm "
+      "clock ((wall clock - epoch) * rate) with its peers in other processes, then writes its "
+      "trajectories, graph and robot.json into OUT/ROBOT");
+  cmd->add_option("--dataset", o->dataset, "dataset folder (dataset.yaml)")->required();
+  cmd->add_option("--robot", o->robot, "the robot's name in the dataset")->required();
+  cmd->add_option("--out", o->out, "output folder (the robot writes into OUT/ROBOT)")
+      ->capture_default_str();
+  cmd->add_option("--transport", o->transport, std::string("how robots talk: ") + kTransports)
+      ->capture_default_str();
+  cmd->add_option("--rate", o->rate, "swarm seconds per wall second (2: twice real time)")
+      ->capture_default_str();
+  cmd->add_option("--epoch", o->epoch,
+                  "Unix time (s) of swarm time 0, the same for every robot of the swarm (0: now)")
+      ->capture_default_str();
+  cmd->add_option("--linger", o->linger,
+                  "s of swarm time to keep running after the last scan (peers' exchanges and "
+                  "optimisation rounds finish)")
+      ->capture_default_str();
+  cmd->add_option("--max-frames", o->max_frames, "scans to play at most (0: all)")
+      ->capture_default_str();
+  cmd->add_option("--swarm", o->dds.swarm, "swarm name, the DDS partition (default: dds.swarm)")
+      ->capture_default_str();
+  cmd->add_option("--domain", o->dds.domain, "DDS domain id (default: dds.domain)")
+      ->capture_default_str();
+  cmd->add_option("--interface", o->dds.interface,
+                  "network interface with multicast discovery, e.g. lo (default: dds.interface)");
+  cmd->add_flag("--json", o->json, "print robot.json at the end instead of the summary line");
+  cmd->callback([o, &config] { runRobot(*o, config); });
+}
+
+}  // namespace dcl::apps

@@ -1,0 +1,526 @@
+// `dcl-slam swarm`: one `dcl-slam robot` process per robot of a dataset on
+// this machine, over Cyclone DDS on the loopback interface, all on one swarm
+// clock (a shared epoch shortly in the future, and the rate); then their
+// outputs are read back and evaluated together, as `dcl-slam run` evaluates
+// its robots: metrics.json and report.html. The robots share nothing but the
+// network: each builds its own view of the dataset and talks to the others
+// only through DDS, as robot computers would.
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cmath>
+#include <csignal>
+#include <cstdio>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+#include <sys/prctl.h>
+#include <sys/types.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <dcl/core/error.hpp>
+#include <dcl/core/progress.hpp>
+#include <dcl/eval/run_report.hpp>
+#include <dcl/io/dataset.hpp>
+#include <dcl/io/file.hpp>
+
+#include "commands.hpp"
+#include "process.hpp"
+#include "robot_outputs.hpp"
+
+namespace dcl::apps {
+namespace {
+
+using Json = nlohmann::ordered_json;
+using SteadyClock = std::chrono::steady_clock;
+
+/// How often the parent looks at its children (and a signal).
+constexpr auto kPollPeriod = std::chrono::milliseconds(100);
+/// s a robot gets to write its outputs after SIGTERM before it is killed.
+constexpr double kStopGrace = 30.0;
+
+struct SwarmOptions {
+  std::string dataset;
+  std::string out = "out/swarm";
+  double rate = 1.0;
+  double linger = 10.0;
+  std::size_t max_frames = 0;
+  std::vector<std::string> robots;  ///< names; empty: every robot of the dataset
+  std::uint32_t domain = 0;
+  std::string interface = "lo";
+  /// s of wall time from now to the swarm's epoch: every robot process
+  /// reads the dataset and builds its world before the clock starts.
+  double start_delay = 3.0;
+  bool json = false;
+};
+
+double since(SteadyClock::time_point start) {
+  return std::chrono::duration<double>(SteadyClock::now() - start).count();
+}
+
+// ---- the plan -------------------------------------------------------------------------
+
+void validate(const SwarmOptions& o) {
+  if (!(o.rate > 0.0) || !std::isfinite(o.rate))
+    throw core::Error("--rate must be a finite number > 0");
+  if (!(o.linger >= 0.0) || !std::isfinite(o.linger))
+    throw core::Error("--linger must be a finite number >= 0");
+  if (!(o.start_delay >= 0.0) || !std::isfinite(o.start_delay))
+    throw core::Error("--start-delay must be a finite number >= 0");
+}
+
+/// The dataset indices of the robots to start, in dataset order.
+std::vector<std::size_t> selectRobots(const io::DatasetSpec& spec,
+                                      const std::vector<std::string>& names) {
+  std::vector<std::size_t> indices;
+  if (names.empty()) {
+    for (std::size_t r = 0; r < spec.robots.size(); ++r) indices.push_back(r);
+  }
+  for (const std::string& name : names) {
+    const auto index = spec.robotIndex(name);
+    if (!index) {
+      std::string known;
+      for (const io::RobotSpec& r : spec.robots) known += (known.empty() ? "" : ", ") + r.name;
+      throw core::Error(fmt::format("--robots: dataset {} has no robot '{}' (robots: {})",
+                                    spec.folder, name, known));
+    }
+    if (std::find(indices.begin(), indices.end(), *index) == indices.end())
+      indices.push_back(*index);
+  }
+  std::sort(indices.begin(), indices.end());
+  if (indices.size() > 255) throw core::Error("a swarm holds at most 255 robots");
+  return indices;
+}
+
+/// s on the swarm clock at which the last robot stops, from the ground truth
+/// (one scan per pose); none when a robot has no ground truth.
+std::optional<double> expectedEnd(const io::DatasetSpec& spec,
+                                  const std::vector<std::size_t>& robots, const SwarmOptions& o) {
+  double end = 0.0;
+  for (const std::size_t r : robots) {
+    if (spec.robots[r].ground_truth.empty()) return std::nullopt;
+    const core::Trajectory truth = io::readGroundTruth(spec, r);
+    std::size_t frames = truth.size();
+    if (o.max_frames > 0) frames = std::min(frames, o.max_frames);
+    if (frames > 0) end = std::max(end, spec.robots[r].start_time + truth.stamp(frames - 1));
+  }
+  return end + o.linger;
+}
+
+/// A swarm name no other run on this network uses at the same time.
+std::string uniqueSwarmName() {
+  const auto ms = static_cast<long long>(unixNow() * 1000.0);
+  return fmt::format("dcl-swarm-{}-{}", ::getpid(), ms);
+}
+
+// ---- the robot processes ------------------------------------------------------------
+
+struct Child {
+  std::string name;
+  std::string log;  ///< its stdout and stderr
+  pid_t pid = -1;
+  std::optional<int> status;  ///< waitpid's, once it ended
+};
+
+/// "exit code 3" or "signal 9".
+std::string describeStatus(int status) {
+  if (WIFEXITED(status)) return fmt::format("exit code {}", WEXITSTATUS(status));
+  if (WIFSIGNALED(status))
+    return fmt::format("signal {} ({})", WTERMSIG(status), ::strsignal(WTERMSIG(status)));
+  return fmt::format("status {}", status);
+}
+
+bool succeeded(int status) {
+  return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
+/// The last non-empty line of a file (a failed robot's reason), or "".
+std::string lastLine(const std::string& path) {
+  std::ifstream in(path);
+  std::string line;
+  std::string last;
+  while (std::getline(in, line)) {
+    if (line.find_first_not_of(" \t\r") != std::string::npos) last = line;
+  }
+  return last;
+}
+
+/// Starts `args` (args[0]: the executable) with stdout and stderr into
+/// `log`. The child gets SIGTERM when this process dies, so no robot
+/// outlives a killed swarm.
+pid_t spawn(const std::vector<std::string>& args, const std::string& log) {
+  std::vector<char*> argv;
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const pid_t parent = ::getpid();
+  const pid_t pid = ::fork();
+  if (pid < 0)
+    throw core::Error(fmt::format("cannot start a robot process: {}", std::strerror(errno)));
+  if (pid > 0) return pid;
+  // The child: only async-signal-safe calls until exec.
+  ::prctl(PR_SET_PDEATHSIG, SIGTERM);
+  if (::getppid() != parent) ::_exit(126);
+  const int fd = ::open(log.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) ::_exit(125);
+  ::dup2(fd, STDOUT_FILENO);
+  ::dup2(fd, STDERR_FILENO);
+  ::execv(argv[0], argv.data());
+  static constexpr char kFailed[] = "dcl-slam swarm: cannot execute the robot process\n";
+  [[maybe_unused]] const auto n = ::write(STDERR_FILENO, kFailed, sizeof(kFailed) - 1);
+  ::_exit(127);
+}
+
+/// The options given to the whole program (--config, --log-level), which
+/// every robot process must see too.
+struct GlobalOptions {
+  std::string config;     ///< absolute path, or empty
+  std::string log_level;  ///< or empty
+};
+
+GlobalOptions globalOptions(CLI::App& app) {
+  GlobalOptions g;
+  if (CLI::Option* c = app.get_option_no_throw("--config"); c && c->count() > 0)
+    g.config = std::filesystem::absolute(c->as<std::string>()).string();
+  if (CLI::Option* l = app.get_option_no_throw("--log-level"); l && l->count() > 0)
+    g.log_level = l->as<std::string>();
+  return g;
+}
+
+std::vector<std::string> robotArgs(const std::string& exe, const GlobalOptions& g,
+                                   const SwarmOptions& o, const std::string& name,
+                                   const std::string& swarm, double epoch) {
+  std::vector<std::string> args{exe};
+  if (!g.config.empty()) args.insert(args.end(), {"--config", g.config});
+  if (!g.log_level.empty()) args.insert(args.end(), {"--log-level", g.log_level});
+  args.insert(args.end(), {"robot",
+                           "--dataset",
+                           o.dataset,
+                           "--robot",
+                           name,
+                           "--out",
+                           o.out,
+                           "--transport",
+                           "dds",
+                           "--rate",
+                           fmt::format("{}", o.rate),
+                           "--epoch",
+                           fmt::format("{:.6f}", epoch),
+                           "--linger",
+                           fmt::format("{}", o.linger),
+                           "--max-frames",
+                           std::to_string(o.max_frames),
+                           "--swarm",
+                           swarm,
+                           "--domain",
+                           std::to_string(o.domain),
+                           "--interface",
+                           o.interface});
+  return args;
+}
+
+void signalAll(std::vector<Child>& children, int signal) {
+  for (const Child& c : children) {
+    if (!c.status) ::kill(c.pid, signal);
+  }
+}
+
+/// Collects the children that ended; true when none is left.
+bool reap(std::vector<Child>& children) {
+  bool all = true;
+  for (Child& c : children) {
+    if (c.status) continue;
+    int status = 0;
+    const pid_t rc = ::waitpid(c.pid, &status, WNOHANG);
+    if (rc == c.pid)
+      c.status = status;
+    else
+      all = false;
+  }
+  return all;
+}
+
+/// Waits for every child; the first to fail (or a signal to this process)
+/// stops the others with SIGTERM, and after kStopGrace with SIGKILL.
+/// Returns the first failed child, if one failed.
+std::optional<std::size_t> waitAll(std::vector<Child>& children, std::optional<double> end,
+                                   double epoch, double rate) {
+  core::ProgressBar progress("swarm", end ? static_cast<std::size_t>(std::ceil(*end)) : 0,
+                             "s swarm time");
+  std::optional<std::size_t> failed;
+  std::optional<SteadyClock::time_point> stopping;
+  while (!reap(children)) {
+    if (!failed) {
+      for (std::size_t i = 0; i < children.size(); ++i) {
+        if (children[i].status && !succeeded(*children[i].status)) {
+          failed = i;
+          break;
+        }
+      }
+    }
+    if (!stopping && (failed || stopSignal() != 0)) {
+      stopping = SteadyClock::now();
+      signalAll(children, SIGTERM);
+    }
+    if (stopping && since(*stopping) > kStopGrace) signalAll(children, SIGKILL);
+    const auto running =
+        std::count_if(children.begin(), children.end(), [](const Child& c) { return !c.status; });
+    const double now = std::max(0.0, (unixNow() - epoch) * rate);
+    progress.update(static_cast<std::size_t>(now),
+                    fmt::format("{} of {} robots running", running, children.size()));
+    std::this_thread::sleep_for(kPollPeriod);
+  }
+  progress.finish();
+  if (!failed) {
+    for (std::size_t i = 0; i < children.size() && !failed; ++i) {
+      if (!succeeded(*children[i].status)) failed = i;
+    }
+  }
+  return failed;
+}
+
+// ---- the evaluation -----------------------------------------------------------------
+
+struct SwarmRun {
+  eval::RunSummary summary;
+  std::vector<RobotReport> reports;  ///< in summary.robots' order
+};
+
+/// The inter-robot loops to draw: each is known to both robots of its pair,
+/// so each is taken from the lower robot's list, when both robots ran.
+std::vector<eval::RunLoop> loopsOf(const std::vector<RobotOutputs>& robots,
+                                   const std::map<core::RobotId, std::size_t>& position_of) {
+  std::vector<eval::RunLoop> loops;
+  const auto position = [&](const core::PoseKey& key) -> std::optional<Eigen::Vector3d> {
+    const auto it = position_of.find(key.robot);
+    if (it == position_of.end()) return std::nullopt;
+    const core::Trajectory& estimate = robots[it->second].estimate;
+    if (key.keyframe.value() >= estimate.size()) return std::nullopt;
+    return estimate.pose(key.keyframe.value()).translation();
+  };
+  for (const RobotOutputs& r : robots) {
+    for (const RobotReport::Loop& loop : r.report.inter_loops) {
+      if (std::min(loop.from.robot, loop.to.robot).value() != r.report.robot) continue;
+      const auto a = position(loop.from);
+      const auto b = position(loop.to);
+      if (!a || !b) continue;
+      loops.push_back(
+          {position_of.at(loop.from.robot), position_of.at(loop.to.robot), *a, *b, loop.accepted});
+    }
+  }
+  return loops;
+}
+
+std::size_t counter(const std::map<std::string, double>& counters, const char* name) {
+  const auto it = counters.find(name);
+  return it == counters.end() ? 0 : static_cast<std::size_t>(it->second);
+}
+
+eval::RobotRun robotRun(RobotOutputs& r, const io::DatasetSpec& spec) {
+  eval::RobotRun run;
+  run.name = r.report.name;
+  run.estimate = std::move(r.estimate);
+  run.odometry = std::move(r.odometry);
+  if (!spec.robots[r.report.robot].ground_truth.empty())
+    run.ground_truth = io::readGroundTruth(spec, r.report.robot);
+  run.frames = r.report.frames;
+  run.keyframes = r.report.keyframes;
+  run.intra_loops = counter(r.report.counters, "intra_loops");
+  run.inter_loops_accepted = counter(r.report.counters, "inter_loops_accepted");
+  run.inter_loops_rejected = counter(r.report.counters, "inter_loops_rejected");
+  run.bytes_sent = r.report.bytes_sent;
+  run.bytes_received = r.report.bytes_received;
+  run.sent_over_time = r.report.sent_over_time;
+  run.counters = r.report.counters;
+  return run;
+}
+
+SwarmRun readSwarm(const io::DatasetSpec& spec, const std::vector<std::size_t>& robots,
+                   const std::string& out) {
+  std::vector<RobotOutputs> outputs;
+  std::map<core::RobotId, std::size_t> position_of;
+  for (const std::size_t r : robots) {
+    outputs.push_back(readRobotOutputs(out + "/" + spec.robots[r].name));
+    position_of[core::RobotId(static_cast<std::uint8_t>(r))] = outputs.size() - 1;
+  }
+  SwarmRun run;
+  run.summary.dataset = spec.name.empty() ? spec.folder : spec.name;
+  run.summary.loops = loopsOf(outputs, position_of);
+  run.summary.meter_interval = outputs.front().report.meter_interval;
+  for (RobotOutputs& r : outputs) {
+    run.summary.duration = std::max(run.summary.duration, r.report.duration);
+    run.reports.push_back(r.report);
+    run.summary.robots.push_back(robotRun(r, spec));
+  }
+  return run;
+}
+
+Json optionalJson(const std::optional<double>& value) {
+  return value ? Json(*value) : Json(nullptr);
+}
+
+Json metricsJson(const SwarmRun& run, const std::vector<eval::RobotMetrics>& metrics,
+                 const SwarmOptions& o, const std::string& swarm, double wall_time) {
+  Json robots = Json::array();
+  for (std::size_t i = 0; i < run.summary.robots.size(); ++i) {
+    const eval::RobotRun& r = run.summary.robots[i];
+    const eval::RobotMetrics& m = metrics[i];
+    const RobotReport& report = run.reports[i];
+    robots.push_back({{"name", r.name},
+                      {"frames", r.frames},
+                      {"keyframes", r.keyframes},
+                      {"ate_rmse", optionalJson(m.ate_rmse)},
+                      {"ate_rmse_odometry_only", optionalJson(m.ate_rmse_odometry_only)},
+                      {"ate_rmse_joint", optionalJson(m.ate_rmse_joint)},
+                      {"are_rmse_deg", optionalJson(m.are_rmse_deg)},
+                      {"are_rmse_deg_odometry_only", optionalJson(m.are_rmse_deg_odometry_only)},
+                      {"bytes_sent", r.bytes_sent},
+                      {"bytes_received", r.bytes_received},
+                      {"transmit_kBps", m.transmit_kBps},
+                      {"receive_kBps", m.receive_kBps},
+                      {"intra_loops", r.intra_loops},
+                      {"inter_loops_accepted", r.inter_loops_accepted},
+                      {"inter_loops_rejected", r.inter_loops_rejected},
+                      {"max_lag_s", report.max_lag},
+                      {"wall_time_s", report.wall_time},
+                      {"failed_writes", report.failed_writes},
+                      {"counters", r.counters}});
+  }
+  return {{"dataset", run.summary.dataset},
+          {"duration_s", run.summary.duration},
+          {"transport", "dds"},
+          {"swarm", swarm},
+          {"rate", o.rate},
+          {"wall_time_s", wall_time},
+          {"robots", robots}};
+}
+
+std::string metres(const Json& value) {
+  return value.is_null() ? "-" : fmt::format("{:.3f}", value.get<double>());
+}
+
+void printTable(const Json& m, const std::string& out) {
+  fmt::print("{:<6} {:>7} {:>9} {:>9} {:>9} {:>11} {:>9} {:>7} {:>7} {:>8}\n", "robot", "frames",
+             "ATE (m)", "odometry", "joint", "loops", "kB sent", "kB/s tx", "kB/s rx", "max lag");
+  for (const Json& r : m["robots"]) {
+    const auto accepted = r["inter_loops_accepted"].get<std::size_t>();
+    fmt::print("{:<6} {:>7} {:>9} {:>9} {:>9} {:>11} {:>9.1f} {:>7.2f} {:>7.2f} {:>7.2f}s\n",
+               r["name"].get<std::string>(), r["frames"].get<std::size_t>(), metres(r["ate_rmse"]),
+               metres(r["ate_rmse_odometry_only"]), metres(r["ate_rmse_joint"]),
+               fmt::format("{} + {}/{}", r["intra_loops"].get<std::size_t>(), accepted,
+                           accepted + r["inter_loops_rejected"].get<std::size_t>()),
+               static_cast<double>(r["bytes_sent"].get<std::size_t>()) / 1000.0,
+               r["transmit_kBps"].get<double>(), r["receive_kBps"].get<double>(),
+               r["max_lag_s"].get<double>());
+  }
+  fmt::print(
+      "ATE in m (keyframes, SE(3)-aligned per robot; joint: one alignment for all robots); "
+      "loops: intra + inter kept/found; max lag: s of swarm time a scan was played late\n");
+  fmt::print(
+      "{} s of swarm time at rate {} in {:.1f} s; outputs in {} (metrics.json, "
+      "report.html, one folder per robot with its robot.log)\n",
+      m["duration_s"].get<double>(), m["rate"].get<double>(), m["wall_time_s"].get<double>(), out);
+}
+
+// ---- the command ----------------------------------------------------------------------
+
+void runSwarmProcesses(const SwarmOptions& o, const GlobalOptions& g) {
+  validate(o);
+  const io::DatasetSpec spec = io::readDataset(o.dataset);
+  const std::vector<std::size_t> robots = selectRobots(spec, o.robots);
+  const std::optional<double> end = expectedEnd(spec, robots, o);
+  const std::string exe = std::filesystem::read_symlink("/proc/self/exe").string();
+  const std::string swarm = uniqueSwarmName();
+  const StopSignals signals;
+  const auto start = SteadyClock::now();
+  const double epoch = unixNow() + o.start_delay;
+
+  std::vector<Child> children;
+  for (const std::size_t r : robots) {
+    const std::string& name = spec.robots[r].name;
+    const std::string folder = o.out + "/" + name;
+    std::filesystem::create_directories(folder);
+    std::filesystem::remove(folder + "/robot.json");  // a stale one must not pass for this run's
+    Child& c = children.emplace_back();
+    c.name = name;
+    c.log = folder + "/robot.log";
+    c.pid = spawn(robotArgs(exe, g, o, name, swarm, epoch), c.log);
+  }
+  if (!o.json)
+    fmt::print(
+        "swarm '{}': {} robot processes over DDS on {}, rate {}, logs in {}/NAME/robot.log\n",
+        swarm, children.size(), o.interface.empty() ? "the default interface" : o.interface, o.rate,
+        o.out);
+  std::fflush(stdout);
+
+  const std::optional<std::size_t> failed = waitAll(children, end, epoch, o.rate);
+  if (stopSignal() != 0) {
+    std::fprintf(stderr,
+                 "dcl-slam swarm: stopped by signal %d; the robots' outputs so far are in %s\n",
+                 stopSignal(), o.out.c_str());
+    throw CLI::RuntimeError(128 + stopSignal());
+  }
+  if (failed) {
+    const Child& c = children[*failed];
+    const std::string reason = lastLine(c.log);
+    throw core::Error(fmt::format(
+        "robot '{}' (pid {}) failed with {}{}; the others were stopped "
+        "(its log: {})",
+        c.name, c.pid, describeStatus(*c.status), reason.empty() ? "" : ": " + reason, c.log));
+  }
+
+  const SwarmRun run = readSwarm(spec, robots, o.out);
+  const std::vector<eval::RobotMetrics> metrics = eval::evaluateRun(run.summary);
+  const Json m = metricsJson(run, metrics, o, swarm, since(start));
+  io::writeFileAtomic(o.out + "/metrics.json",
+                      [&](std::ostream& out) { out << m.dump(2) << "\n"; });
+  io::writeFileAtomic(o.out + "/report.html",
+                      [&](std::ostream& out) { out << eval::reportHtml(run.summary, metrics); });
+  if (o.json) return fmt::print("{}\n", m.dump(2));
+  printTable(m, o.out);
+}
+
+}  // namespace
+
+void addSwarmCommand(CLI::App& app, const AppConfig& config) {
+  auto o = std::make_shared<SwarmOptions>();
+  o->domain = config.dds.domain;
+  CLI::App* cmd = app.add_subcommand(
+      "swarm",
+      "starts one `dcl-slam robot` process per robot of a dataset on this machine (Cyclone DDS "
+      "on loopback, one swarm clock), waits for them and evaluates their outputs together: "
+      "metrics.json and report.html as `run` writes them");
+  cmd->add_option("--dataset", o->dataset, "dataset folder (dataset.yaml)")->required();
+  cmd->add_option("--out", o->out, "output folder")->capture_default_str();
+  cmd->add_option("--rate", o->rate, "swarm seconds per wall second (2: twice real time)")
+      ->capture_default_str();
+  cmd->add_option("--linger", o->linger,
+                  "s of swarm time each robot keeps running after its last scan")
+      ->capture_default_str();
+  cmd->add_option("--max-frames", o->max_frames, "scans per robot at most (0: all)")
+      ->capture_default_str();
+  cmd->add_option("--robots", o->robots, "the robots to start, e.g. a,c (default: all)")
+      ->delimiter(',');
+  cmd->add_option("--domain", o->domain, "DDS domain id (default: dds.domain)")
+      ->capture_default_str();
+  cmd->add_option("--interface", o->interface,
+                  "network interface the robots talk on, with multicast discovery")
+      ->capture_default_str();
+  cmd->add_option("--start-delay", o->start_delay,
+                  "s from now to the swarm clock's start: the robots load their data first")
+      ->capture_default_str();
+  cmd->add_flag("--json", o->json, "print metrics.json instead of the table");
+  cmd->callback([o, &app] { runSwarmProcesses(*o, globalOptions(app)); });
+}
+
+}  // namespace dcl::apps

@@ -1,0 +1,252 @@
+// `dcl-slam bench system`: the paper's experiments (§IV) on simulated
+// datasets. Each dataset is simulated from its preset (once; the folder is
+// reused), run with every robot in one process over the simulated radio as
+// `dcl-slam run` does, and summarised as the paper's tables: ATE and ARE per
+// robot with odometry only and with the whole system (Tables II, III),
+// transmitted data per robot and communication time (Table IV), the sizes of
+// the messages sent (Table V), and the large-team run (§IV-E: average ATE,
+// transmit and receive rates).
+//
+// The paper assumes no communication range limit for these experiments ("messages
+// can be exchanged at any time"); so does this bench unless --range is given.
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <dcl/core/error.hpp>
+#include <dcl/io/dataset.hpp>
+#include <dcl/io/file.hpp>
+#include <dcl/sim/presets.hpp>
+#include <dcl/sim/sim_source.hpp>
+
+#include "commands.hpp"
+#include "run_swarm.hpp"
+
+namespace dcl::apps {
+namespace {
+
+namespace fs = std::filesystem;
+using Json = nlohmann::ordered_json;
+
+// The paper's average transmit rates per robot (Table IV and §IV-E), kB/s.
+constexpr double kPaperKittiTransmit = 164.67;
+constexpr double kPaperCampusTransmit = 53.55;
+constexpr double kPaperLargeTeamTransmit = 34.36;
+constexpr double kPaperLargeTeamReceive = 193.57;
+
+struct SystemOptions {
+  std::vector<std::string> datasets{"kitti05-3", "kitti08-2", "kitti00-3", "campus-3"};
+  std::string scale = "campus-9";  ///< the large-team preset ("none": skip)
+  int scale_robots = 0;            ///< robots of the large-team run (0: the preset's)
+  std::string work = "out/bench-system";
+  std::string data;  ///< the shared data folder (KITTI ground truth)
+  std::size_t max_frames = 0;
+  int threads = 0;
+  double range = 0.0;    ///< m, the radio's range (0: unlimited, as in the paper)
+  std::string markdown;  ///< where to write the tables as Markdown too
+  bool json = false;
+};
+
+/// The dataset of `preset` in `folder`, simulated unless it is already there.
+std::string ensureDataset(const std::string& preset, int robots, const std::string& folder,
+                          const std::string& data) {
+  if (fs::exists(fs::path(folder) / "dataset.yaml")) return folder;
+  sim::writeSimDataset(folder, sim::makePreset(preset, {.data_dir = data, .robots = robots}));
+  return folder;
+}
+
+std::optional<double> number(const Json& value) {
+  if (value.is_null()) return std::nullopt;
+  return value.get<double>();
+}
+
+std::string cell(const std::optional<double>& value, const char* format = "{:.3f}") {
+  return value ? fmt::format(fmt::runtime(format), *value) : "-";
+}
+
+/// 1 - full / odometry-only, when both are known.
+std::optional<double> improvement(const Json& robot, const char* full, const char* odometry) {
+  const auto f = number(robot[full]);
+  const auto o = number(robot[odometry]);
+  if (!f || !o || *o <= 0.0) return std::nullopt;
+  return 1.0 - *f / *o;
+}
+
+double mean(const std::vector<double>& v) {
+  double sum = 0.0;
+  for (double x : v) sum += x;
+  return v.empty() ? 0.0 : sum / static_cast<double>(v.size());
+}
+
+struct DatasetRun {
+  std::string name;
+  Json metrics;
+  double seconds = 0.0;  ///< wall time of the run
+};
+
+/// The run's per-dataset summary: averages over its robots.
+Json summaryOf(const DatasetRun& run) {
+  std::vector<double> gain, ate, transmit, receive;
+  for (const Json& r : run.metrics["robots"]) {
+    if (const auto g = improvement(r, "ate_rmse", "ate_rmse_odometry_only")) gain.push_back(*g);
+    if (const auto a = number(r["ate_rmse"])) ate.push_back(*a);
+    transmit.push_back(r["transmit_kBps"].get<double>());
+    receive.push_back(r["receive_kBps"].get<double>());
+  }
+  return {{"dataset", run.name},
+          {"robots", run.metrics["robots"].size()},
+          {"wall_s", run.seconds},
+          {"duration_s", run.metrics["duration_s"]},
+          {"ate_rmse_mean", mean(ate)},
+          {"ate_improvement_mean", mean(gain)},
+          {"transmit_kBps_mean", mean(transmit)},
+          {"receive_kBps_mean", mean(receive)}};
+}
+
+bool isKitti(const std::string& name) {
+  return name.rfind("kitti", 0) == 0;
+}
+
+/// Tables II/III (accuracy), IV (bandwidth) and the large-team summary, in Markdown.
+std::string tables(const std::vector<DatasetRun>& runs, const std::optional<DatasetRun>& scale) {
+  std::ostringstream out;
+  out << "Accuracy (paper Tables II, III): ATE [m] and ARE [deg] per robot, odometry only -> "
+         "whole system\n\n"
+         "| dataset | robot | ATE odometry | ATE system | change | ARE odometry | ARE system |\n"
+         "|---|---|---|---|---|---|---|\n";
+  for (const DatasetRun& run : runs) {
+    for (const Json& r : run.metrics["robots"]) {
+      const auto gain = improvement(r, "ate_rmse", "ate_rmse_odometry_only");
+      out << fmt::format(
+          "| `{}` | {} | {} | {} | {} | {} | {} |\n", run.name, r["name"].get<std::string>(),
+          cell(number(r["ate_rmse_odometry_only"])), cell(number(r["ate_rmse"])),
+          gain ? fmt::format("{:+.0f} %", -100.0 * *gain) : "-",
+          cell(number(r["are_rmse_deg_odometry_only"])), cell(number(r["are_rmse_deg"])));
+    }
+  }
+  out << "\nPer dataset (ATE lowered on average by; the target is at least 30 %):\n\n"
+         "| dataset | robots | mean ATE system | mean ATE lowered by | run wall time | simulated "
+         "time |\n|---|---|---|---|---|---|\n";
+  for (const DatasetRun& run : runs) {
+    const Json s = summaryOf(run);
+    out << fmt::format("| `{}` | {} | {:.3f} m | {:.0f} % | {:.0f} s | {:.0f} s |\n", run.name,
+                       s["robots"].get<std::size_t>(), s["ate_rmse_mean"].get<double>(),
+                       100.0 * s["ate_improvement_mean"].get<double>(), run.seconds,
+                       s["duration_s"].get<double>());
+  }
+  out << "\nBandwidth (paper Table IV): average transmitted data per robot [kB/s] and "
+         "communication time (the run's simulated duration)\n\n"
+         "| dataset | per robot | average | paper's average | ratio | receive average | "
+         "communication time |\n|---|---|---|---|---|---|---|\n";
+  for (const DatasetRun& run : runs) {
+    std::string per_robot;
+    for (const Json& r : run.metrics["robots"])
+      per_robot +=
+          fmt::format("{}{:.1f}", per_robot.empty() ? "" : " / ", r["transmit_kBps"].get<double>());
+    const Json s = summaryOf(run);
+    const double paper = isKitti(run.name) ? kPaperKittiTransmit : kPaperCampusTransmit;
+    const double transmit = s["transmit_kBps_mean"].get<double>();
+    out << fmt::format("| `{}` | {} | {:.1f} | {:.2f} | 1/{:.1f} | {:.1f} | {:.0f} s |\n", run.name,
+                       per_robot, transmit, paper, paper / transmit,
+                       s["receive_kBps_mean"].get<double>(), s["duration_s"].get<double>());
+  }
+  if (scale) {
+    const Json s = summaryOf(*scale);
+    out << fmt::format(
+        "\nLarge team (paper §IV-E, 9 robots: ATE 1.83 m, transmit {:.2f} kB/s, receive {:.2f} "
+        "kB/s)\n\n| dataset | robots | mean ATE system | mean ATE lowered by | transmit kB/s "
+        "| receive kB/s | run wall time |\n|---|---|---|---|---|---|---|\n"
+        "| `{}` | {} | {:.3f} m | {:.0f} % | {:.1f} | {:.1f} | {:.0f} s |\n",
+        kPaperLargeTeamTransmit, kPaperLargeTeamReceive, scale->name,
+        s["robots"].get<std::size_t>(), s["ate_rmse_mean"].get<double>(),
+        100.0 * s["ate_improvement_mean"].get<double>(), s["transmit_kBps_mean"].get<double>(),
+        s["receive_kBps_mean"].get<double>(), scale->seconds);
+  }
+  return out.str();
+}
+
+DatasetRun runOne(const std::string& preset, int robots, const std::string& name,
+                  const SystemOptions& o, const AppConfig& config) {
+  const std::string folder =
+      ensureDataset(preset, robots, (fs::path(o.work) / name).string(), o.data);
+  AppConfig c = config;
+  c.radio.range = o.range;
+  const auto start = std::chrono::steady_clock::now();
+  Json metrics = runSwarmDataset(folder, (fs::path(o.work) / (name + "-run")).string(),
+                                 o.max_frames, o.threads, c);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return {name, std::move(metrics), seconds};
+}
+
+void runSystem(const SystemOptions& o, const AppConfig& config) {
+  if (o.threads < 0) throw core::Error("--threads must be at least 0");
+  if (!(o.range >= 0.0)) throw core::Error("--range must be zero (unlimited) or positive");
+  for (const std::string& name : o.datasets) {
+    if (name == "none") continue;
+    sim::makePreset(name, {.data_dir = o.data});  // an unknown name or missing data: fail early
+  }
+  std::vector<DatasetRun> runs;
+  for (const std::string& name : o.datasets) {
+    if (name == "none") continue;
+    runs.push_back(runOne(name, 0, name, o, config));
+  }
+  std::optional<DatasetRun> scale;
+  if (o.scale != "none") {
+    const std::string name =
+        o.scale_robots > 0 ? fmt::format("{}-{}", o.scale, o.scale_robots) : o.scale;
+    scale = runOne(o.scale, o.scale_robots, name, o, config);
+  }
+  const std::string text = tables(runs, scale);
+  if (!o.markdown.empty()) io::writeFileAtomic(o.markdown, [&](std::ostream& out) { out << text; });
+  if (!o.json) return fmt::print("{}", text);
+  Json all = Json::array();
+  for (const DatasetRun& run : runs)
+    all.push_back({{"summary", summaryOf(run)}, {"metrics", run.metrics}});
+  Json j = {{"datasets", all}};
+  if (scale) j["scale"] = {{"summary", summaryOf(*scale)}, {"metrics", scale->metrics}};
+  fmt::print("{}\n", j.dump(2));
+}
+
+}  // namespace
+
+void addBenchSystemCommand(CLI::App& bench, const AppConfig& config) {
+  auto o = std::make_shared<SystemOptions>();
+  o->data = defaultDataDir();
+  CLI::App* cmd = bench.add_subcommand(
+      "system",
+      "the paper's experiments on simulated datasets: ATE/ARE per robot with odometry only and "
+      "with the whole system, transmitted kB/s and communication time, and the large-team run");
+  cmd->add_option("--datasets", o->datasets, "presets to run (none: only the large team)")
+      ->delimiter(',')
+      ->capture_default_str();
+  cmd->add_option("--scale", o->scale, "the large-team preset (none: skip)")->capture_default_str();
+  cmd->add_option("--scale-robots", o->scale_robots,
+                  "robots of the large-team run (0: the preset's; e.g. 27)")
+      ->capture_default_str();
+  cmd->add_option("--work", o->work, "folder for the datasets (simulated once) and the runs")
+      ->capture_default_str();
+  cmd->add_option("--data", o->data, "the shared data folder (KITTI ground truth)")
+      ->capture_default_str();
+  cmd->add_option("--max-frames", o->max_frames, "scans per robot at most (0: all)")
+      ->capture_default_str();
+  cmd->add_option("--threads", o->threads, "robots processed at once (0: every core)")
+      ->capture_default_str();
+  cmd->add_option("--range", o->range,
+                  "m, communication range (0: unlimited, the paper's assumption)")
+      ->capture_default_str();
+  cmd->add_option("--markdown", o->markdown, "also write the tables to this file");
+  cmd->add_flag("--json", o->json, "print every run's metrics and summary as JSON");
+  cmd->callback([o, &config] { runSystem(*o, config); });
+}
+
+}  // namespace dcl::apps

@@ -1,0 +1,33 @@
+#pragma once
+
+// What the commands that run as long-lived processes share (`robot`, `swarm`,
+// `ping`): stopping cleanly on SIGINT/SIGTERM, and the wall clock that
+// processes of one swarm agree on.
+
+#include <csignal>
+
+namespace dcl::apps {
+
+/// While one lives, SIGINT and SIGTERM do not kill the process: the first
+/// one received is kept (stopSignal()) so the command can stop, write what it
+/// has and exit; the previous handlers come back after.
+class StopSignals {
+ public:
+  StopSignals();
+  ~StopSignals();
+  StopSignals(const StopSignals&) = delete;
+  StopSignals& operator=(const StopSignals&) = delete;
+
+ private:
+  using Handler = void (*)(int);
+  Handler previous_int_;
+  Handler previous_term_;
+};
+
+/// The first SIGINT or SIGTERM received while a StopSignals lives; 0: none.
+int stopSignal();
+
+/// s since the Unix epoch, from the system clock (shared by processes on one host).
+double unixNow();
+
+}  // namespace dcl::apps

@@ -1,0 +1,195 @@
+"""End-to-end tests of one robot per process over Cyclone DDS: `dcl-slam robot`
+and `dcl-slam swarm`, run as a user runs them, on the simulated demo swarm.
+
+Robot processes talk on loopback in DDS domain 162 (the ping tests use 150..160),
+each swarm under its own name, so parallel test runs stay apart."""
+import json
+import math
+import os
+import signal
+import subprocess
+import tempfile
+import time
+import unittest
+
+DCL_SLAM = os.environ["DCL_SLAM"]
+DOMAIN = "162"
+
+
+def run(*args, check=True, timeout=300):
+    """Runs dcl-slam with args; returns (exit code, stdout, stderr)."""
+    proc = subprocess.run([DCL_SLAM, *args], capture_output=True, text=True, timeout=timeout)
+    if check and proc.returncode != 0:
+        raise AssertionError(f"dcl-slam {' '.join(args)} failed: {proc.stderr}")
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+def simulate_demo(folder):
+    run("simulate", "--preset", "demo", "--out", folder)
+
+
+def tum_rows(path):
+    with open(path) as f:
+        return [line for line in f if line.strip() and not line.startswith("#")]
+
+
+class Robot(unittest.TestCase):
+    """dcl-slam robot: bad input is refused in one line; a signal stops it with its
+    outputs written whole."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.dataset = os.path.join(cls.tmp.name, "demo")
+        simulate_demo(cls.dataset)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def robot(self, *args):
+        return run("robot", "--out", os.path.join(self.tmp.name, "out"), "--domain", DOMAIN,
+                   "--interface", "lo", "--swarm", f"robot-test-{os.getpid()}", *args,
+                   check=False, timeout=60)
+
+    def assertOneLineError(self, code, err, *needles):
+        self.assertNotEqual(code, 0)
+        lines = err.strip().splitlines()
+        self.assertEqual(len(lines), 1, err)
+        for needle in needles:
+            self.assertIn(needle, lines[0])
+
+    def test_unknown_robot_lists_the_robots(self):
+        code, _, err = self.robot("--dataset", self.dataset, "--robot", "zz")
+        self.assertOneLineError(code, err, "'zz'", "a, b, c")
+
+    def test_unknown_transport_is_named(self):
+        code, _, err = self.robot("--dataset", self.dataset, "--robot", "a", "--transport", "tcp")
+        self.assertOneLineError(code, err, "'tcp'", "dds")
+
+    def test_missing_dataset_is_named(self):
+        missing = os.path.join(self.tmp.name, "no-such-dataset")
+        code, _, err = self.robot("--dataset", missing, "--robot", "a")
+        self.assertOneLineError(code, err, missing)
+
+    def test_bad_rate_is_refused(self):
+        code, _, err = self.robot("--dataset", self.dataset, "--robot", "a", "--rate", "0")
+        self.assertOneLineError(code, err, "--rate")
+
+    def test_sigterm_stops_it_with_whole_outputs(self):
+        out = os.path.join(self.tmp.name, "stopped")
+        proc = subprocess.Popen(
+            [DCL_SLAM, "robot", "--dataset", self.dataset, "--robot", "b", "--out", out,
+             "--domain", DOMAIN, "--interface", "lo", "--swarm", f"robot-stop-{os.getpid()}"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.addCleanup(lambda: proc.poll() is None and proc.kill())
+        time.sleep(4)  # real time: about 3 s of scans played after joining
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+        self.assertEqual(proc.returncode, 128 + signal.SIGTERM, err)
+        self.assertIn("stopped by signal", err)
+        with open(os.path.join(out, "b", "robot.json")) as f:
+            report = json.load(f)
+        self.assertTrue(report["interrupted"])
+        self.assertGreater(report["frames"], 0)
+        self.assertLess(report["frames"], report["frames_planned"])
+        for name in ("trajectory.tum", "odometry.tum"):
+            self.assertEqual(len(tum_rows(os.path.join(out, "b", name))), report["keyframes"], name)
+        self.assertTrue(os.path.exists(os.path.join(out, "b", "graph.g2o")))
+        self.assertEqual([n for n in os.listdir(os.path.join(out, "b")) if ".tmp" in n], [])
+
+
+class Swarm(unittest.TestCase):
+    """dcl-slam swarm: the three demo robots, one process each over DDS on loopback,
+    1000 scans each at four times real time, lingering 20 s of swarm time for the
+    last exchanges (the routes meet after about 70 s: robots
+    a and b first, then a and c); and a robot that fails stops the swarm."""
+
+    FRAMES = 1000
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.dataset = os.path.join(cls.tmp.name, "demo")
+        simulate_demo(cls.dataset)
+        cls.out = os.path.join(cls.tmp.name, "swarm")
+        _, cls.stdout, _ = run("swarm", "--dataset", cls.dataset, "--out", cls.out,
+                               "--max-frames", str(cls.FRAMES), "--rate", "4", "--linger", "20", "--domain",
+                               DOMAIN, "--json")
+        with open(os.path.join(cls.out, "metrics.json")) as f:
+            cls.metrics = json.load(f)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def test_every_robot_writes_its_outputs(self):
+        self.assertEqual(json.loads(self.stdout), self.metrics)
+        for name in ("metrics.json", "report.html"):
+            self.assertGreater(os.path.getsize(os.path.join(self.out, name)), 0, name)
+        for r in self.metrics["robots"]:
+            folder = os.path.join(self.out, r["name"])
+            for name in ("trajectory.tum", "trajectory.kitti", "times.txt", "odometry.tum",
+                         "graph.g2o", "robot.json", "robot.log"):
+                self.assertTrue(os.path.exists(os.path.join(folder, name)), f"{r['name']}/{name}")
+            self.assertEqual(len(tum_rows(os.path.join(folder, "trajectory.tum"))),
+                             r["keyframes"], r["name"])
+            with open(os.path.join(folder, "robot.json")) as f:
+                report = json.load(f)
+            self.assertFalse(report["interrupted"])
+            self.assertEqual(report["frames"], self.FRAMES)
+            self.assertEqual(report["swarm"], self.metrics["swarm"])
+
+    def test_every_robot_is_accurate_and_hears_its_peers(self):
+        robots = self.metrics["robots"]
+        self.assertEqual([r["name"] for r in robots], ["a", "b", "c"])
+        for r in robots:
+            self.assertEqual(r["frames"], self.FRAMES)
+            self.assertTrue(math.isfinite(r["ate_rmse"]), r["name"])
+            self.assertLess(r["ate_rmse"], 0.5, r["name"])
+            self.assertGreater(r["bytes_sent"], 0, r["name"])
+            self.assertGreater(r["bytes_received"], 0, r["name"])
+            self.assertEqual(r["counters"]["descriptors_sent"], r["keyframes"], r["name"])
+            # DDS has no range: every robot hears its peers' descriptors (all but those
+            # sent after it left, when it finished first).
+            others = sum(o["keyframes"] for o in robots if o is not r)
+            self.assertGreater(r["counters"]["descriptors_received"], others / 2, r["name"])
+            self.assertLessEqual(r["counters"]["descriptors_received"], others, r["name"])
+            self.assertGreaterEqual(r["max_lag_s"], 0.0)
+
+    def test_robots_close_loops_with_each_other(self):
+        robots = self.metrics["robots"]
+        self.assertGreater(sum(r["inter_loops_accepted"] for r in robots), 0)
+        # robot.json lists each loop by its two keyframes, one of each robot.
+        for r in robots:
+            with open(os.path.join(self.out, r["name"], "robot.json")) as f:
+                loops = json.load(f)["inter_loops"]
+            self.assertEqual(sum(loop["accepted"] for loop in loops), r["inter_loops_accepted"])
+            for loop in loops:
+                self.assertNotEqual(loop["from"]["robot"], loop["to"]["robot"])
+
+    def test_a_failing_robot_stops_the_swarm_and_is_named(self):
+        broken = os.path.join(self.tmp.name, "broken")
+        simulate_demo(broken)
+        path = os.path.join(broken, "dataset.yaml")
+        with open(path) as f:
+            text = f.read()
+        # Robot b's scans from a folder that does not exist: only its process finds out.
+        head, sep, tail = text.partition("  - name: b\n")
+        tail = tail.replace("type: sim", "type: kitti\n      folder: missing\n"
+                            "      times: missing.txt", 1)
+        with open(path, "w") as f:
+            f.write(head + sep + tail)
+        out = os.path.join(self.tmp.name, "broken-out")
+        code, _, err = run("swarm", "--dataset", broken, "--out", out, "--domain", DOMAIN,
+                           check=False, timeout=120)
+        self.assertEqual(code, 1)
+        lines = err.strip().splitlines()
+        self.assertIn("robot 'b'", lines[-1])
+        self.assertIn("exit code 1", lines[-1])
+        self.assertIn("missing", lines[-1])
+        self.assertFalse(os.path.exists(os.path.join(out, "metrics.json")))
+
+
+if __name__ == "__main__":
+    unittest.main()
