@@ -139,20 +139,10 @@ Maps buildMaps(const eval::RunSummary& s, const swarm::SwarmResult& result, doub
   return maps;
 }
 
-/// The report's robot colours (eval/run_report.cpp), so that the map and the
-/// plots agree: no green or red, no grey.
+/// The report's robot colours, so that the map and the plots agree.
 io::Rgb robotColour(std::size_t robot) {
-  static constexpr std::array<io::Rgb, 10> kPalette = {{{0x1f, 0x77, 0xb4},
-                                                        {0xff, 0x7f, 0x0e},
-                                                        {0x94, 0x67, 0xbd},
-                                                        {0x8c, 0x56, 0x4b},
-                                                        {0xe3, 0x77, 0xc2},
-                                                        {0x17, 0xbe, 0xcf},
-                                                        {0xbc, 0xbd, 0x22},
-                                                        {0x39, 0x3b, 0x79},
-                                                        {0x7b, 0x41, 0x73},
-                                                        {0x8c, 0x6d, 0x31}}};
-  return kPalette[robot % kPalette.size()];
+  const std::array<std::uint8_t, 3> c = eval::robotColour(robot);
+  return {c[0], c[1], c[2]};
 }
 
 void writeMap(const std::string& path, const swarm::VoxelMap& map) {

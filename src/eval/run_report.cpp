@@ -125,18 +125,14 @@ RobotMetrics robotMetrics(const RunSummary& run, const RunPairs& pairs, std::siz
 // ------------------------------------------------------------------------------------------------
 // Text and numbers
 
-// Robot colours, enough for the 9-robot runs: no green or red (they mark accepted and rejected
-// loops), no grey (ground truth).
-constexpr std::array<std::string_view, 10> kPalette = {"#1f77b4", "#ff7f0e", "#9467bd", "#8c564b",
-                                                       "#e377c2", "#17becf", "#bcbd22", "#393b79",
-                                                       "#7b4173", "#8c6d31"};
 constexpr std::string_view kAccepted = "#2ca02c";
 constexpr std::string_view kRejected = "#d62728";
 // Longer polylines are thinned to this many points: the page stays small for long runs.
 constexpr std::size_t kMaxLinePoints = 2000;
 
-std::string_view colour(std::size_t i) {
-  return kPalette[i % kPalette.size()];
+std::string colour(std::size_t i) {
+  const std::array<std::uint8_t, 3> c = robotColour(i);
+  return fmt::format("#{:02x}{:02x}{:02x}", c[0], c[1], c[2]);
 }
 
 // HTML-escaped text; control characters (invalid in HTML) become U+FFFD.
@@ -724,6 +720,20 @@ std::string reportHtml(const RunSummary& run, const std::vector<RobotMetrics>& m
   html += anyTraffic(run) ? trafficPlot(run) : std::string("<p>No traffic recorded.</p>\n");
   html += kindTable(run) + "<h2>Counters</h2>\n" + counterTable(run);
   return html + "</body>\n</html>\n";
+}
+
+std::array<std::uint8_t, 3> robotColour(std::size_t i) {
+  static constexpr std::array<std::array<std::uint8_t, 3>, 10> kPalette = {{{0x1f, 0x77, 0xb4},
+                                                                            {0xff, 0x7f, 0x0e},
+                                                                            {0x94, 0x67, 0xbd},
+                                                                            {0x8c, 0x56, 0x4b},
+                                                                            {0xe3, 0x77, 0xc2},
+                                                                            {0x17, 0xbe, 0xcf},
+                                                                            {0xbc, 0xbd, 0x22},
+                                                                            {0x39, 0x3b, 0x79},
+                                                                            {0x7b, 0x41, 0x73},
+                                                                            {0x8c, 0x6d, 0x31}}};
+  return kPalette[i % kPalette.size()];
 }
 
 }  // namespace dcl::eval

@@ -7,7 +7,9 @@
 /// the runner fills a RunSummary.
 
 #include <Eigen/Core>
+#include <array>
 #include <cstddef>
+#include <cstdint>
 #include <map>
 #include <optional>
 #include <string>
@@ -86,5 +88,11 @@ std::vector<RobotMetrics> evaluateRun(const RunSummary& run);
 /// apart), ATE per robot with and without collaboration, and traffic over
 /// time per message kind.
 std::string reportHtml(const RunSummary& run, const std::vector<RobotMetrics>& metrics);
+
+/// Robot `i`'s colour (red, green, blue) in the report, so that other outputs
+/// (the merged map) draw each robot as the report does. Ten colours, then
+/// again from the first; none green, red or grey (the report's accepted and
+/// rejected loops and its ground truth).
+std::array<std::uint8_t, 3> robotColour(std::size_t i);
 
 }  // namespace dcl::eval
