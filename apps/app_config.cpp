@@ -45,6 +45,7 @@ robot::RobotConfig robotConfig(const AppConfig& c) {
   r.dgs.max_pose_iterations = std::min(r.dgs.max_pose_iterations, c.robot.dgs_steps);
   r.refine = c.refine;
   r.refine.max_rounds = c.robot.refine_steps;
+  r.candidate_spacing = static_cast<std::uint64_t>(std::max(c.robot.candidate_spacing, 1));
   r.loop_sigma_translation = c.robot.loop_sigma_translation;
   r.loop_sigma_rotation = c.robot.loop_sigma_rotation;
   r.optimise_period = c.robot.optimise_period;
@@ -78,6 +79,9 @@ void validate(const AppConfig& config, const std::string& source) {
   checkField(source, "radio", [&] { comm::validate(config.radio); });
   checkField(source, "dds", [&] { comm::validate(config.dds); });
   checkField(source, "map", [&] { swarm::validate(config.map); });
+  checkField(source, "robot.candidate_spacing", [&] {
+    if (config.robot.candidate_spacing < 1) throw core::Error("must be at least 1");
+  });
   checkField(source, "robot.dgs_steps", [&] {
     if (config.robot.dgs_steps < 1) throw core::Error("must be at least 1");
   });

@@ -71,6 +71,7 @@ struct RobotSection {
   /// section's caps are for whole offline graphs): the refinement goes on from
   /// wherever DGS stopped, and a round must end while the group is together.
   int dgs_steps = 100;
+  int candidate_spacing = 3;  ///< own keyframes between two candidates to one neighbour, at least
   double loop_sigma_translation = 0.02;  ///< m, added to every verified loop's covariance
   double loop_sigma_rotation = 0.0035;   ///< rad, likewise
 
@@ -84,6 +85,8 @@ struct RobotSection {
     v.field("refine_steps", refine_steps,
             "refinement steps after DGS in each optimisation round at most (0: DGS alone)");
     v.field("dgs_steps", dgs_steps, "DGS steps per stage in each optimisation round at most");
+    v.field("candidate_spacing", candidate_spacing,
+            "own keyframes between two loop candidates sent to one neighbour, at least (1: all)");
     v.field("loop_sigma_translation", loop_sigma_translation,
             "m, noise added to every verified loop (the registration's covariance is optimistic)");
     v.field("loop_sigma_rotation", loop_sigma_rotation, "rad, likewise");

@@ -55,6 +55,8 @@ void validate(const RobotConfig& config) {
   comm::validate(config.messenger);
   backend::validate(config.dgs);
   backend::validate(config.refine);
+  if (config.candidate_spacing < 1)
+    throw core::Error("robot config: candidate_spacing must be at least 1");
   for (const auto& [name, value] :
        {std::pair{"loop_sigma_translation", config.loop_sigma_translation},
         std::pair{"loop_sigma_rotation", config.loop_sigma_rotation}}) {
@@ -220,7 +222,10 @@ struct RobotNode::Impl {
       m = std::get<comm::DescriptorMessage>(comm::asDelivered(m));
       const backend::Factor step = odometryFactor(self, keyframe.id, *m.odometry);
       own_chain.push_back(step);
-      for (auto& [robot, n] : neighbours) n.pcm.addRobotFactor(step);
+      for (auto& [robot, n] : neighbours) {
+        n.pcm.addRobotFactor(step);
+        redecideIfRejecting(n);
+      }
     }
     messenger.send(std::nullopt, std::move(m), now);
     count("descriptors_sent");
@@ -268,7 +273,10 @@ struct RobotNode::Impl {
   void onDescriptor(core::RobotId from, const comm::DescriptorMessage& d) {
     count("descriptors_received");
     Neighbour& n = neighbour(from);
-    if (d.odometry) n.pcm.addRobotFactor(odometryFactor(from, d.keyframe, *d.odometry));
+    if (d.odometry) {
+      n.pcm.addRobotFactor(odometryFactor(from, d.keyframe, *d.odometry));
+      redecideIfRejecting(n);
+    }
     std::shared_ptr<const place::IrisDescriptor> theirs;
     try {
       theirs = std::make_shared<const place::IrisDescriptor>(place::decodeIris(d.descriptor, iris));
@@ -279,7 +287,16 @@ struct RobotNode::Impl {
     const std::optional<place::PlaceCandidate> best = index.query(*theirs);
     if (!best) return;
     const core::KeyframeId own = best->keyframe.keyframe;
-    if (!n.asked.emplace(own, d.keyframe).second) return;
+    if (n.asked.contains({own, d.keyframe})) return;
+    // Loops a few metres apart add little but their clouds and separators.
+    const auto near =
+        n.asked.lower_bound({core::KeyframeId(own.value() >= config.candidate_spacing
+                                                  ? own.value() - config.candidate_spacing + 1
+                                                  : 0),
+                             core::KeyframeId(0)});
+    if (near != n.asked.end() && near->first.value() < own.value() + config.candidate_spacing)
+      return count("candidates_skipped_nearby");
+    n.asked.emplace(own, d.keyframe);
     sendCandidate(from, own, d.keyframe, best->match);
   }
 
@@ -357,10 +374,21 @@ struct RobotNode::Impl {
     Neighbour& n = neighbour(other);
     n.loops[backend::loopId(f)] = f;
     (void)n.pcm.addLoop(f);
+    decide(n);
+  }
+
+  void decide(Neighbour& n) {
     const backend::PcmDecision& decision = n.pcm.decide();
     n.accepted.clear();
     for (const backend::Factor& a : decision.accepted) n.accepted.insert(backend::loopId(a));
     recountPcm();
+  }
+
+  /// A chain grew: loops PCM could not yet relate (the steps between them had
+  /// not all arrived) are judged again, so both robots of the pair end with the
+  /// same decision whatever order loops and descriptors came in.
+  void redecideIfRejecting(Neighbour& n) {
+    if (n.accepted.size() < n.loops.size()) decide(n);
   }
 
   void recountPcm() {

@@ -95,6 +95,10 @@ struct RobotConfig {
     c.max_rounds = 50;
     return c;
   }();
+  /// Keyframes between the own keyframes of two candidates to one neighbour
+  /// at least (1: every match): loops a few metres apart add little to the
+  /// graph but their clouds, their verification and their separators.
+  std::uint64_t candidate_spacing = 3;
   /// Noise added to every verified loop's covariance (standard deviations, m
   /// and rad): the registration's own covariance sees only how well the two
   /// clouds constrain each other, not the errors of the submap it aligned to,
