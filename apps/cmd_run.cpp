@@ -27,6 +27,7 @@
 #include <dcl/swarm/swarm_run.hpp>
 
 #include "commands.hpp"
+#include "robot_outputs.hpp"
 #include "run_swarm.hpp"
 
 namespace dcl::apps {
@@ -113,10 +114,6 @@ eval::RunSummary summaryOf(const io::DatasetSpec& spec, const swarm::SwarmResult
   return s;
 }
 
-Json optionalJson(const std::optional<double>& value) {
-  return value ? Json(*value) : Json(nullptr);
-}
-
 /// Each robot's map and all of them merged; empty when the run kept no map.
 struct Maps {
   double voxel = 0.0;  ///< m
@@ -158,24 +155,11 @@ Json metricsJson(const eval::RunSummary& s, const std::vector<eval::RobotMetrics
   for (std::size_t r = 0; r < s.robots.size(); ++r) {
     const eval::RobotRun& run = s.robots[r];
     const eval::RobotMetrics& m = metrics[r];
-    robots.push_back({{"name", run.name},
-                      {"frames", run.frames},
-                      {"keyframes", run.keyframes},
-                      {"ate_rmse", optionalJson(m.ate_rmse)},
-                      {"ate_rmse_odometry_only", optionalJson(m.ate_rmse_odometry_only)},
-                      {"ate_rmse_joint", optionalJson(m.ate_rmse_joint)},
-                      {"are_rmse_deg", optionalJson(m.are_rmse_deg)},
-                      {"are_rmse_deg_odometry_only", optionalJson(m.are_rmse_deg_odometry_only)},
-                      {"bytes_sent", run.bytes_sent},
-                      {"bytes_received", run.bytes_received},
-                      {"transmit_kBps", m.transmit_kBps},
-                      {"receive_kBps", m.receive_kBps},
-                      {"intra_loops", run.intra_loops},
-                      {"inter_loops_accepted", run.inter_loops_accepted},
-                      {"inter_loops_rejected", run.inter_loops_rejected},
-                      {"map_points", maps.robots.empty() ? 0 : maps.robots[r].size()},
-                      {"map_cloud_bytes", result.robots[r].map_clouds.bytes()},
-                      {"counters", run.counters}});
+    Json robot = robotMetricsJson(run, m);
+    robot["map_points"] = maps.robots.empty() ? 0 : maps.robots[r].size();
+    robot["map_cloud_bytes"] = result.robots[r].map_clouds.bytes();
+    robot["counters"] = run.counters;
+    robots.push_back(std::move(robot));
   }
   return {{"dataset", s.dataset},
           {"duration_s", s.duration},

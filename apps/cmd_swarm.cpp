@@ -365,10 +365,6 @@ SwarmRun readSwarm(const io::DatasetSpec& spec, const std::vector<std::size_t>& 
   return run;
 }
 
-Json optionalJson(const std::optional<double>& value) {
-  return value ? Json(*value) : Json(nullptr);
-}
-
 Json metricsJson(const SwarmRun& run, const std::vector<eval::RobotMetrics>& metrics,
                  const SwarmOptions& o, const std::string& swarm, double wall_time) {
   Json robots = Json::array();
@@ -376,25 +372,12 @@ Json metricsJson(const SwarmRun& run, const std::vector<eval::RobotMetrics>& met
     const eval::RobotRun& r = run.summary.robots[i];
     const eval::RobotMetrics& m = metrics[i];
     const RobotReport& report = run.reports[i];
-    robots.push_back({{"name", r.name},
-                      {"frames", r.frames},
-                      {"keyframes", r.keyframes},
-                      {"ate_rmse", optionalJson(m.ate_rmse)},
-                      {"ate_rmse_odometry_only", optionalJson(m.ate_rmse_odometry_only)},
-                      {"ate_rmse_joint", optionalJson(m.ate_rmse_joint)},
-                      {"are_rmse_deg", optionalJson(m.are_rmse_deg)},
-                      {"are_rmse_deg_odometry_only", optionalJson(m.are_rmse_deg_odometry_only)},
-                      {"bytes_sent", r.bytes_sent},
-                      {"bytes_received", r.bytes_received},
-                      {"transmit_kBps", m.transmit_kBps},
-                      {"receive_kBps", m.receive_kBps},
-                      {"intra_loops", r.intra_loops},
-                      {"inter_loops_accepted", r.inter_loops_accepted},
-                      {"inter_loops_rejected", r.inter_loops_rejected},
-                      {"max_lag_s", report.max_lag},
-                      {"wall_time_s", report.wall_time},
-                      {"failed_writes", report.failed_writes},
-                      {"counters", r.counters}});
+    Json robot = robotMetricsJson(r, m);
+    robot["max_lag_s"] = report.max_lag;
+    robot["wall_time_s"] = report.wall_time;
+    robot["failed_writes"] = report.failed_writes;
+    robot["counters"] = r.counters;
+    robots.push_back(std::move(robot));
   }
   return {{"dataset", run.summary.dataset},
           {"duration_s", run.summary.duration},

@@ -6,6 +6,7 @@
 #include <exception>
 #include <filesystem>
 #include <limits>
+#include <optional>
 #include <ostream>
 
 #include <dcl/core/error.hpp>
@@ -177,6 +178,27 @@ std::uint32_t clockIncarnation() {
     throw core::Error(
         "the system clock is outside 2024-01-01..2037-08: cannot derive an incarnation from it");
   return static_cast<std::uint32_t>(tenths);
+}
+
+nlohmann::ordered_json robotMetricsJson(const eval::RobotRun& run, const eval::RobotMetrics& m) {
+  const auto optional = [](const std::optional<double>& value) {
+    return value ? nlohmann::ordered_json(*value) : nlohmann::ordered_json(nullptr);
+  };
+  return {{"name", run.name},
+          {"frames", run.frames},
+          {"keyframes", run.keyframes},
+          {"ate_rmse", optional(m.ate_rmse)},
+          {"ate_rmse_odometry_only", optional(m.ate_rmse_odometry_only)},
+          {"ate_rmse_joint", optional(m.ate_rmse_joint)},
+          {"are_rmse_deg", optional(m.are_rmse_deg)},
+          {"are_rmse_deg_odometry_only", optional(m.are_rmse_deg_odometry_only)},
+          {"bytes_sent", run.bytes_sent},
+          {"bytes_received", run.bytes_received},
+          {"transmit_kBps", m.transmit_kBps},
+          {"receive_kBps", m.receive_kBps},
+          {"intra_loops", run.intra_loops},
+          {"inter_loops_accepted", run.inter_loops_accepted},
+          {"inter_loops_rejected", run.inter_loops_rejected}};
 }
 
 }  // namespace dcl::apps

@@ -17,8 +17,14 @@
 #include <dcl/comm/messenger.hpp>
 #include <dcl/core/ids.hpp>
 #include <dcl/core/trajectory.hpp>
+#include <dcl/eval/run_report.hpp>
 
 namespace dcl::apps {
+
+/// One robot's entry of metrics.json, as `run` and `swarm` write it: its
+/// counts, ATE and ARE with and without collaboration, bytes and rates. The
+/// caller appends what only it knows, then the counters.
+nlohmann::ordered_json robotMetricsJson(const eval::RobotRun& run, const eval::RobotMetrics& m);
 
 /// The default incarnation of a robot process: tenths of a second since
 /// 2024-01-01 00:00 UTC. A restart takes far longer than 0.1 s (joining DDS
