@@ -169,6 +169,16 @@ Json metricsJson(const eval::RunSummary& s, const std::vector<eval::RobotMetrics
           {"robots", robots}};
 }
 
+/// Writes `map` to `path`; without a map (map.voxel 0) removes what an earlier
+/// run left there, so that the folder holds no map of another run.
+void writeOrClearMap(const std::string& path, const swarm::VoxelMap* map) {
+  if (map != nullptr) {
+    writeMap(path, *map);
+  } else {
+    std::filesystem::remove(path);
+  }
+}
+
 void writeOutputs(const std::string& out, const eval::RunSummary& s,
                   const swarm::SwarmResult& result, const Maps& maps, const Json& metrics,
                   const std::vector<eval::RobotMetrics>& robot_metrics) {
@@ -179,9 +189,9 @@ void writeOutputs(const std::string& out, const eval::RunSummary& s,
     io::writeKittiPoses(folder + "/trajectory.kitti", s.robots[r].estimate, folder + "/times.txt");
     io::writeTumPoses(folder + "/odometry.tum", s.robots[r].odometry);
     io::writeG2o(folder + "/graph.g2o", backend::toG2o(result.robots[r].graph));
-    if (!maps.robots.empty()) writeMap(folder + "/map.ply", maps.robots[r]);
+    writeOrClearMap(folder + "/map.ply", maps.robots.empty() ? nullptr : &maps.robots[r]);
   }
-  if (!maps.robots.empty()) writeMap(out + "/map.ply", maps.merged);
+  writeOrClearMap(out + "/map.ply", maps.robots.empty() ? nullptr : &maps.merged);
   io::writeFileAtomic(out + "/metrics.json",
                       [&](std::ostream& out) { out << metrics.dump(2) << "\n"; });
   io::writeFileAtomic(out + "/report.html",

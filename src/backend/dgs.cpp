@@ -193,6 +193,11 @@ struct DgsAgent::Impl {
       ++rejected;
       return;
     }
+    if (s > stageIndex(stage)) {
+      // The sender has left this robot's stage; its message saying so may
+      // have been lost, and without it this robot would step on alone to the cap.
+      progress[stageIndex(stage)][m.from].finished = true;
+    }
     NeighbourView& view = views[s][m.from];
     if (m.iteration <= view.iteration) return;
     view.iteration = m.iteration;

@@ -86,6 +86,8 @@ using PoseMap = std::map<core::PoseKey, Eigen::Isometry3d>;
 /// s a robot waiting in the refinement lets pass before sending its messages
 /// of the step again (one may have been lost).
 constexpr double kRefineResend = 0.1;
+/// Finished rounds whose final refinement share is kept for members that lost it.
+constexpr std::size_t kFinalSharesKept = 8;
 
 /// s a robot waits for a lower neighbour's DGS step before stepping without it.
 constexpr double kDgsPatience = 0.1;
@@ -180,6 +182,9 @@ struct RobotNode::Impl {
   double last_announce = kNever;
   std::vector<std::pair<core::RobotId, std::uint32_t>> last_signature;
   std::map<core::KeyframeId, Eigen::Isometry3d> optimised;  ///< own poses after the last round
+  /// The cost share of the step at which each recent round's refinement ended:
+  /// a member whose copy was lost still waits for it, and asks by sending its own.
+  std::map<std::uint32_t, RefineMessage> final_shares;
 
   Impl(comm::Transport& transport, const RobotConfig& c, std::uint32_t incarnation)
       : self(transport.self()),
@@ -412,8 +417,12 @@ struct RobotNode::Impl {
     return out;
   }
 
+  /// The loops this robot's part of a round's graph holds: accepted inter-robot
+  /// loops and its own intra-robot loops. A round starts when any member's count
+  /// changed: an intra-robot loop closed after the last round moves keyframes
+  /// that round already placed, and only a round puts them back in one frame.
   [[nodiscard]] std::uint32_t acceptedLoops() const {
-    std::size_t accepted = 0;
+    std::size_t accepted = mapper.loops().size();
     for (const auto& [robot, n] : neighbours) accepted += n.accepted.size();
     return static_cast<std::uint32_t>(accepted);
   }
@@ -627,7 +636,7 @@ struct RobotNode::Impl {
   }
 
   void onRefine(const RefineMessage& m) {
-    if (finished.contains(m.round)) return;
+    if (finished.contains(m.round)) return answerLateMember(m);
     if (!round || m.round != round->number || !round->group.contains(m.from)) {
       spdlog::debug(
           "robot {}: t {:.2f}: ignores refinement step {} of round {} from {} (in round {})",
@@ -642,6 +651,17 @@ struct RobotNode::Impl {
       return;
     }
     round->values[m.step][m.from] = m.poses;
+  }
+
+  /// A member still at the step at which this robot's refinement of a finished
+  /// round ended lost this robot's share of it: it gets the share again.
+  void answerLateMember(const RefineMessage& m) {
+    const auto it = final_shares.find(m.round);
+    if (it == final_shares.end() || m.step != it->second.step) return;
+    RefineMessage reply = it->second;
+    reply.to = m.from;
+    messenger.send(reply.to, toWire(reply), now);
+    count("refine_final_shares_resent");
   }
 
   /// A member refining has left DGS: its last DGS message, which says so,
@@ -749,6 +769,8 @@ struct RobotNode::Impl {
         r.agent.endRound(r.schedule->endRound(total));
       }
       if (r.schedule->done()) {
+        final_shares[round->number] = {self, self, round->number, r.step, {}, shares.at(self)};
+        while (final_shares.size() > kFinalSharesKept) final_shares.erase(final_shares.begin());
         count("refine_steps", r.schedule->rounds());
         count("refine_restarts", r.schedule->restarts());
         if (r.schedule->rounds() > 0)

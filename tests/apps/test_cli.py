@@ -7,6 +7,7 @@ import csv
 import json
 import os
 import re
+import shutil
 import signal
 import subprocess
 import sys
@@ -994,6 +995,20 @@ class Run(unittest.TestCase):
         self.assertGreaterEqual(len(evaluated), 2)
         for r in evaluated:
             self.assertLess(r["ate_rmse"], 1.0, r["name"])
+
+    def test_a_run_without_a_map_leaves_no_map_of_an_earlier_run(self):
+        out = os.path.join(self.tmp.name, "nomap")
+        shutil.copytree(self.outs[0], out)
+        with tempfile.NamedTemporaryFile("w", suffix=".yaml") as f:
+            f.write("map: {voxel: 0}\n")
+            f.flush()
+            _, stdout, _ = run("--config", f.name, "run", "--dataset", self.dataset, "--out", out,
+                               "--max-frames", "20", "--json")
+        metrics = json.loads(stdout)
+        self.assertEqual(metrics["map_points"], 0)
+        for name in ("map.ply", "a/map.ply", "b/map.ply", "c/map.ply"):
+            self.assertFalse(os.path.exists(os.path.join(out, name)), name)
+        self.assertEqual(metrics["robots"][0]["frames"], 20)
 
     def test_one_or_two_threads_give_the_same_run(self):
         self.assertEqual(self.metrics[0], self.metrics[1])

@@ -369,6 +369,51 @@ TEST(DgsAgent, DoesNotUseAnUninitialisedNeighbour) {
   for (const auto& [k, R] : clean) EXPECT_TRUE(after_garbage.at(k) == R);
 }
 
+TEST(DgsAgent, AMemberInTheNextStageHasLeftThisOne) {
+  // a and b step in turn; every message b sends while it leaves the rotation
+  // stage is lost. b's first pose-stage message tells a that b has left: a
+  // follows at its next step instead of stepping rotations alone to the cap.
+  const PoseGraph graph = splitIntoRobots(exactGraph(spiral(60)), 2);
+  const auto locals = partitionByRobot(graph);
+  const std::set<core::RobotId> group{robotId(0), robotId(1)};
+  DgsAgent a(robotId(0), locals.at(robotId(0)));
+  DgsAgent b(robotId(1), locals.at(robotId(1)));
+  a.startRound(group, 3);
+  b.startRound(group, 3);
+  bool lost = false;
+  for (int turn = 0; turn < 200 && b.stage() == DgsStage::rotation; ++turn) {
+    a.iterate();
+    for (const DgsMessage& m : a.outgoing()) b.receive(m);
+    b.iterate();
+    if (b.stage() == DgsStage::rotation) {
+      for (const DgsMessage& m : b.outgoing()) a.receive(m);
+    } else {
+      lost = true;  // b's message saying it left is dropped
+    }
+  }
+  ASSERT_TRUE(lost);
+  ASSERT_EQ(b.stage(), DgsStage::pose);
+  // b saw the group converged after a's step; a, stepping first, has not yet.
+  ASSERT_EQ(a.stage(), DgsStage::rotation);
+  const int before = a.stageIterations(DgsStage::rotation);
+  b.iterate();
+  for (const DgsMessage& m : b.outgoing()) a.receive(m);
+  a.iterate();
+  EXPECT_EQ(a.stage(), DgsStage::pose);
+  EXPECT_EQ(a.stageIterations(DgsStage::rotation), before + 1);
+  // Both then finish the round as usual.
+  for (int turn = 0; turn < 400 && (a.stage() != DgsStage::done || b.stage() != DgsStage::done);
+       ++turn) {
+    a.iterate();
+    for (const DgsMessage& m : a.outgoing()) b.receive(m);
+    b.iterate();
+    for (const DgsMessage& m : b.outgoing()) a.receive(m);
+  }
+  EXPECT_EQ(a.stage(), DgsStage::done);
+  EXPECT_EQ(b.stage(), DgsStage::done);
+  EXPECT_LT(a.stageIterations(DgsStage::rotation), 100);
+}
+
 TEST(DgsAgent, RejectsMalformedMessagesAndIgnoresOtherRounds) {
   const auto locals = partitionByRobot(splitIntoRobots(exactGraph(spiral(60)), 2));
   DgsAgent b(robotId(1), locals.at(robotId(1)));
