@@ -858,10 +858,15 @@ backend::PoseGraph RobotNode::graph() const {
     g.setEstimate({impl_->self, k.id}, impl_->estimate(k.id));
   for (const InterLoop& loop : interLoops()) {
     if (!loop.accepted) continue;
-    for (const core::PoseKey& end : {loop.factor.from, loop.factor.to}) {
-      if (!g.hasNode(end)) g.addNode(end, Eigen::Isometry3d::Identity());
+    const backend::Factor& f = loop.factor;
+    const bool own_from = f.from.robot == impl_->self;
+    const core::PoseKey& own = own_from ? f.from : f.to;
+    const core::PoseKey& other = own_from ? f.to : f.from;
+    if (!g.hasNode(other)) {
+      const Eigen::Isometry3d T_own = impl_->estimate(own.keyframe);
+      g.addNode(other, own_from ? T_own * f.T_from_to : T_own * f.T_from_to.inverse());
     }
-    g.addFactor(loop.factor);
+    g.addFactor(f);
   }
   return g;
 }

@@ -163,6 +163,29 @@ TEST(RobotNode, OptimisationRoundsPutTheRobotsInOneFrame) {
   }
 }
 
+TEST(RobotNode, TheGraphPlacesTheNeighboursKeyframesWhereTheyAre) {
+  // Each robot's graph (written as graph.g2o) holds the neighbour keyframes its
+  // loops reach, placed by the loop from its own estimate: after the rounds,
+  // within centimetres of where the neighbour itself puts them.
+  const SwarmRun& run = defaultRun();
+  for (std::size_t r = 0; r < run.nodes.size(); ++r) {
+    const RobotNode& node = *run.nodes[r];
+    const RobotNode& other = *run.nodes[1 - r];
+    std::size_t reached = 0;
+    const backend::PoseGraph graph = node.graph();
+    for (const auto& [key, T] : graph.nodes()) {
+      if (key.robot == node.id()) continue;
+      ASSERT_EQ(key.robot, other.id());
+      const Eigen::Isometry3d T_theirs = other.estimate(key.keyframe);
+      EXPECT_LT((T.translation() - T_theirs.translation()).norm(), 0.1)
+          << core::robotName(node.id()) << " places " << core::robotName(key.robot) << " "
+          << key.keyframe.value();
+      ++reached;
+    }
+    EXPECT_GE(reached, 3u) << core::robotName(node.id());
+  }
+}
+
 TEST(RobotNode, RefinementAfterDgsLowersTheCostAndBothRobotsDecideAlike) {
   const SwarmRun& run = defaultRun();
   const auto& a = run.nodes[0]->counters();

@@ -144,8 +144,8 @@ class RobotNode {
   /// Every inter-robot loop known, with PCM's current verdict.
   [[nodiscard]] std::vector<InterLoop> interLoops() const;
   /// The local graph with the accepted inter-robot loops and the neighbours'
-  /// keyframes they reach (their estimates unknown here: identity); the own
-  /// estimates are the latest (estimate()).
+  /// keyframes they reach, each where its first loop puts it from this robot's
+  /// keyframe; the own estimates are the latest (estimate()).
   [[nodiscard]] backend::PoseGraph graph() const;
   /// Keyframe `k`'s pose T_world_keyframe in the frame of the robot's group
   /// (its own odometry frame until a round finished).
