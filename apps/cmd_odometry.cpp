@@ -159,10 +159,17 @@ Json statisticsJson(const eval::Statistics& s) {
           {"min", s.min},   {"max", s.max},   {"count", s.count}};
 }
 
-/// ATE (SE(3)-aligned) and the KITTI metric of `estimate` against the ground truth.
+/// ATE (SE(3)-aligned) and the KITTI metric of `estimate` against the ground
+/// truth; {"unavailable": why} when they cannot be computed (a robot that has
+/// not moved yet cannot be aligned), which leaves the outputs to be written.
 Json accuracyJson(const core::Trajectory& estimate, const core::Trajectory& gt) {
   const eval::Association pairs = eval::associateByTimestamp(estimate, gt, 0.01);
-  const eval::AteResult ate = eval::computeAte(pairs, eval::Alignment::se3);
+  eval::AteResult ate;
+  try {
+    ate = eval::computeAte(pairs, eval::Alignment::se3);
+  } catch (const core::Error& e) {
+    return {{"unavailable", e.what()}};
+  }
   const auto kitti = eval::computeKittiMetric(pairs);
   Json j = {{"ate_se3_translation_m", statisticsJson(ate.translation_m)},
             {"ate_se3_rotation_deg", statisticsJson(ate.rotation_deg)}};
@@ -239,6 +246,10 @@ void printSummary(const Json& m) {
   if (!m.contains("accuracy")) return;
   for (const char* which : {"odometry", "smoothed"}) {
     const Json& a = m["accuracy"][which];
+    if (a.contains("unavailable")) {
+      fmt::print("{:>9}: no ATE: {}\n", which, a["unavailable"].get<std::string>());
+      continue;
+    }
     fmt::print("{:>9}: ATE {:.3f} m", which, a["ate_se3_translation_m"]["rmse"].get<double>());
     if (a.contains("kitti_translation_percent")) {
       fmt::print(", KITTI {:.3f} % {:.5f} deg/m", a["kitti_translation_percent"].get<double>(),

@@ -381,6 +381,20 @@ class Odometry(DemoDataset):
         self.assertEqual(metrics["odometry"], "external")
         self.assertLess(metrics["accuracy"]["odometry"]["ate_se3_translation_m"]["rmse"], 1e-6)
 
+    def test_a_robot_still_standing_gets_its_outputs_and_no_ate(self):
+        # Robot c of the demo stands for its first seconds: its ground truth is one
+        # point, which no alignment can fit. The run is still written, and says why.
+        out = os.path.join(self.tmp.name, "standing")
+        _, stdout, _ = run("odometry", "--dataset", self.dataset, "--robot", "c", "--out", out,
+                           "--max-frames", "20")
+        with open(os.path.join(out, "metrics.json")) as f:
+            metrics = json.load(f)
+        self.assertEqual(metrics["frames"]["frames"], 20)
+        self.assertIn("collinear or coincident", metrics["accuracy"]["odometry"]["unavailable"])
+        self.assertIn("no ATE", stdout)
+        for name in ("trajectory.tum", "odometry.tum", "keyframes/poses.tum"):
+            self.assertTrue(os.path.exists(os.path.join(out, name)), name)
+
     def test_unknown_robot_is_named(self):
         code, _, err = run("odometry", "--dataset", self.dataset, "--robot", "zz", "--out",
                            os.path.join(self.tmp.name, "x"), check=False)
