@@ -78,7 +78,7 @@ constexpr double kNever = -std::numeric_limits<double>::infinity();
 /// What a robot announced of its loops.
 struct Link {
   std::set<core::RobotId> neighbours;  ///< robots it shares accepted loops with
-  std::uint32_t accepted = 0;          ///< its accepted inter-robot loops
+  std::uint32_t loops = 0;             ///< the loops it holds (loopsHeld)
 };
 
 using PoseMap = std::map<core::PoseKey, Eigen::Isometry3d>;
@@ -421,7 +421,7 @@ struct RobotNode::Impl {
   /// loops and its own intra-robot loops. A round starts when any member's count
   /// changed: an intra-robot loop closed after the last round moves keyframes
   /// that round already placed, and only a round puts them back in one frame.
-  [[nodiscard]] std::uint32_t acceptedLoops() const {
+  [[nodiscard]] std::uint32_t loopsHeld() const {
     std::size_t accepted = mapper.loops().size();
     for (const auto& [robot, n] : neighbours) accepted += n.accepted.size();
     return static_cast<std::uint32_t>(accepted);
@@ -433,7 +433,7 @@ struct RobotNode::Impl {
     last_announce = now;
     comm::DgsState state;
     state.stage = comm::OptimisationStage::idle;
-    state.iteration = acceptedLoops();
+    state.iteration = loopsHeld();
     for (const core::RobotId robot : loopNeighbours()) state.progress.push_back({robot});
     if (state.progress.empty()) return;
     messenger.send(std::nullopt, std::move(state), now);
@@ -443,7 +443,7 @@ struct RobotNode::Impl {
     Link& link = links[from];
     link.neighbours.clear();
     for (const comm::MemberProgress& p : state.progress) link.neighbours.insert(p.robot);
-    link.accepted = state.iteration;
+    link.loops = state.iteration;
   }
 
   /// The robots in range joined to this one by loops, as announced.
@@ -469,8 +469,7 @@ struct RobotNode::Impl {
     std::vector<std::pair<core::RobotId, std::uint32_t>> out;
     for (const core::RobotId r : members) {
       const auto it = links.find(r);
-      out.emplace_back(r,
-                       r == self ? acceptedLoops() : (it == links.end() ? 0 : it->second.accepted));
+      out.emplace_back(r, r == self ? loopsHeld() : (it == links.end() ? 0 : it->second.loops));
     }
     return out;
   }
