@@ -103,6 +103,14 @@ void validate(const AppConfig& config, const std::string& source) {
       if (!(value > 0.0) || !std::isfinite(value)) throw core::Error("must be a finite number > 0");
     });
   }
+  checkField(source, "place.evaluation.index.distinct_ratio", [&] {
+    const double r = config.place.evaluation.index.distinct_ratio;
+    if (!(r > 0.0 && r <= 1.0)) throw core::Error("must be in (0, 1] (1: off)");
+  });
+  checkField(source, "place.evaluation.index.distinct_separation", [&] {
+    const double d = config.place.evaluation.index.distinct_separation;
+    if (!(d >= 0.0) || !std::isfinite(d)) throw core::Error("must be finite and >= 0");
+  });
   checkField(source, "pcm.threshold", [&] {
     if (!(config.pcm.threshold > 0.0)) throw core::Error("must be positive");
   });

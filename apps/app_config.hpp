@@ -66,7 +66,7 @@ struct RobotSection {
   double announce_period = 2.0;  ///< s between announcements of the robot's loop neighbours
   /// Refinement steps after DGS in each optimisation round at most (the
   /// `refine` section's other fields apply; 0: DGS alone).
-  int refine_steps = 50;
+  int refine_steps = 200;
   /// DGS steps per stage at most in each optimisation round (the `dgs`
   /// section's caps are for whole offline graphs): the refinement goes on from
   /// wherever DGS stopped, and a round must end while the group is together.

@@ -129,14 +129,30 @@ struct Candidate {
   bool kept = false;       ///< PCM kept it
 };
 
+/// Matches refused as ambiguous (PlaceIndexConfig::distinct_ratio).
+struct Refused {
+  std::size_t count = 0;
+  std::size_t true_places = 0;  ///< of which the refused match was the right place
+};
+
 /// Every candidate of one querying robot's keyframes in another robot's index.
 std::vector<Candidate> search(const std::vector<Robot>& robots, std::size_t querier,
-                              std::size_t verifier) {
+                              std::size_t verifier, double true_loop_distance, Refused& refused) {
   std::vector<Candidate> out;
   const Robot& q = robots[querier];
   const Robot& v = robots[verifier];
   for (std::size_t i = 0; i < q.keyframes.size(); ++i) {
-    const auto best = v.index->query(*q.descriptions[i]);
+    const place::DistinctMatch found =
+        v.index->queryDistinct(*q.descriptions[i], [&v](core::KeyframeId id) {
+          return Eigen::Vector3d(v.keyframes.at(id.value()).T_odom_keyframe.translation());
+        });
+    if (found.refused) {
+      ++refused.count;
+      const Eigen::Isometry3d& T_match = v.T_world_keyframe[found.refused->slot];
+      if ((q.T_world_keyframe[i].translation() - T_match.translation()).norm() < true_loop_distance)
+        ++refused.true_places;
+    }
+    const std::optional<place::PlaceCandidate>& best = found.best;
     if (!best) continue;
     Candidate c;
     c.querier = querier;
@@ -287,10 +303,12 @@ void runLoops(const LoopsOptions& o, const AppConfig& config) {
       place::makeDescriptor(config.place.descriptor);
   for (Robot& robot : robots) describe(robot, descriptor, config.place.evaluation.index);
   std::vector<Candidate> candidates;
+  Refused refused;
   for (std::size_t q = 0; q < robots.size(); ++q)
     for (std::size_t v = 0; v < robots.size(); ++v)
       if (q != v) {
-        std::vector<Candidate> found = search(robots, q, v);
+        std::vector<Candidate> found =
+            search(robots, q, v, config.place.evaluation.true_loop_distance, refused);
         candidates.insert(candidates.end(), found.begin(), found.end());
       }
 
@@ -318,6 +336,8 @@ void runLoops(const LoopsOptions& o, const AppConfig& config) {
   for (const Robot& r : robots) keyframes[r.name] = r.keyframes.size();
   m["keyframes"] = keyframes;
   m["loops"] = metricsOf(candidates, o, config.place.evaluation.true_loop_distance);
+  m["loops"]["refused_ambiguous"] = refused.count;
+  m["loops"]["refused_ambiguous_true_place"] = refused.true_places;
   m["pcm_pairs"] = pairs;
   m["seconds"] = {{"front_end", front_end_s},
                   {"verification", verify_s},
@@ -334,6 +354,9 @@ void runLoops(const LoopsOptions& o, const AppConfig& config) {
   const Json& l = m["loops"];
   fmt::print("{}: {} robots, {} candidates ({} real revisits)\n", spec.name, robots.size(),
              l["candidates"].get<std::size_t>(), l["candidates_true"].get<std::size_t>());
+  fmt::print("  refused {} matches as ambiguous (another place nearly as close; {} were right)\n",
+             l["refused_ambiguous"].get<std::size_t>(),
+             l["refused_ambiguous_true_place"].get<std::size_t>());
   fmt::print("  verified {} ({} correct, {} wrong; {} by the RANSAC fallback)\n",
              l["verified"].get<std::size_t>(), l["verified_correct"].get<std::size_t>(),
              l["verified_wrong"].get<std::size_t>(), l["verified_by_ransac"].get<std::size_t>());

@@ -28,6 +28,7 @@
 #include <dcl/sim/presets.hpp>
 #include <dcl/sim/sim_source.hpp>
 
+#include "bound.hpp"
 #include "commands.hpp"
 #include "run_swarm.hpp"
 
@@ -90,8 +91,65 @@ double mean(const std::vector<double>& v) {
 struct DatasetRun {
   std::string name;
   Json metrics;
-  double seconds = 0.0;  ///< wall time of the run
+  double seconds = 0.0;           ///< wall time of the run
+  std::vector<RobotBound> bound;  ///< own SLAM, joint optimum and exact loops (bound.hpp)
 };
+
+/// Mean of 1 - value / base over the robots (the ATE lowered against base).
+double meanLowered(const std::vector<RobotBound>& robots, double RobotBound::*value,
+                   double RobotBound::*base) {
+  std::vector<double> v;
+  for (const RobotBound& r : robots)
+    if (r.*base > 0.0 && !std::isnan(r.*value)) v.push_back(1.0 - r.*value / r.*base);
+  double sum = 0.0;
+  for (double x : v) sum += x;
+  return v.empty() ? 0.0 : sum / static_cast<double>(v.size());
+}
+
+/// Robots whose `value` is not below `base`.
+std::size_t notBelow(const std::vector<RobotBound>& robots, double RobotBound::*value,
+                     double RobotBound::*base) {
+  std::size_t n = 0;
+  for (const RobotBound& r : robots) n += r.*value >= r.*base ? 1 : 0;  // false for NaN
+  return n;
+}
+
+/// The bound tables: what each robot's own loops, the system, the joint
+/// optimum and exact loops make of its ATE.
+std::string boundTables(const std::vector<const DatasetRun*>& runs) {
+  std::ostringstream out;
+  out << "\nOwn SLAM and bound (`dcl-slam bench bound`): ATE [m] per robot of its odometry, its "
+         "own SLAM (odometry and its own loops, solved: single-robot SLAM, the paper's \"only "
+         "LIO-SAM\"), the system, the run's joint graph solved centrally, and that graph with "
+         "every inter-robot loop exact\n\n"
+         "| dataset | robot | odometry | own SLAM | system | joint optimum | loops exact |\n"
+         "|---|---|---|---|---|---|---|\n";
+  for (const DatasetRun* run : runs) {
+    for (const RobotBound& r : run->bound) {
+      const auto m = [](double v) { return std::isnan(v) ? "-" : fmt::format("{:.3f}", v); };
+      out << fmt::format("| `{}` | {} | {} | {} | {} | {} | {} |\n", run->name, r.name,
+                         m(r.odometry), m(r.own_loops), m(r.run), m(r.optimum), m(r.exact));
+    }
+  }
+  out << "\nPer dataset: ATE lowered on average against the odometry, and against each "
+         "robot's own SLAM (robots not below it)\n\n"
+         "| dataset | own SLAM vs odometry | system vs odometry | system vs own SLAM | joint "
+         "optimum vs own SLAM | loops exact vs own SLAM |\n|---|---|---|---|---|---|\n";
+  for (const DatasetRun* run : runs) {
+    const auto& b = run->bound;
+    const auto vsOwn = [&](double RobotBound::*value) {
+      return fmt::format("{:.0f} % ({} of {} not below)",
+                         100.0 * meanLowered(b, value, &RobotBound::own_loops),
+                         notBelow(b, value, &RobotBound::own_loops), b.size());
+    };
+    out << fmt::format("| `{}` | {:.0f} % | {:.0f} % | {} | {} | {} |\n", run->name,
+                       100.0 * meanLowered(b, &RobotBound::own_loops, &RobotBound::odometry),
+                       100.0 * meanLowered(b, &RobotBound::run, &RobotBound::odometry),
+                       vsOwn(&RobotBound::run), vsOwn(&RobotBound::optimum),
+                       vsOwn(&RobotBound::exact));
+  }
+  return out.str();
+}
 
 /// The run's per-dataset summary: averages over its robots.
 Json summaryOf(const DatasetRun& run) {
@@ -159,6 +217,10 @@ std::string tables(const std::vector<DatasetRun>& runs, const std::optional<Data
                        per_robot, transmit, paper, paper / transmit,
                        s["receive_kBps_mean"].get<double>(), s["duration_s"].get<double>());
   }
+  std::vector<const DatasetRun*> all;
+  for (const DatasetRun& run : runs) all.push_back(&run);
+  if (scale) all.push_back(&*scale);
+  out << boundTables(all);
   if (scale) {
     const Json s = summaryOf(*scale);
     out << fmt::format(
@@ -185,7 +247,8 @@ DatasetRun runOne(const std::string& preset, int robots, const std::string& name
                                  o.max_frames, o.threads, c);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return {name, std::move(metrics), seconds};
+  return {name, std::move(metrics), seconds,
+          computeBound((fs::path(o.work) / (name + "-run")).string(), folder)};
 }
 
 void runSystem(const SystemOptions& o, const AppConfig& config) {
@@ -209,11 +272,28 @@ void runSystem(const SystemOptions& o, const AppConfig& config) {
   const std::string text = tables(runs, scale);
   if (!o.markdown.empty()) io::writeFileAtomic(o.markdown, [&](std::ostream& out) { out << text; });
   if (!o.json) return fmt::print("{}", text);
+  const auto boundJson = [](const DatasetRun& run) {
+    Json out = Json::array();
+    for (const RobotBound& r : run.bound) {
+      out.push_back({{"name", r.name},
+                     {"ate_odometry", r.odometry},
+                     {"ate_own_slam", r.own_loops},
+                     {"ate_system", r.run},
+                     {"ate_joint_optimum", r.optimum},
+                     {"ate_loops_exact", r.exact}});
+    }
+    return out;
+  };
   Json all = Json::array();
-  for (const DatasetRun& run : runs)
-    all.push_back({{"summary", summaryOf(run)}, {"metrics", run.metrics}});
+  for (const DatasetRun& run : runs) {
+    all.push_back(
+        {{"summary", summaryOf(run)}, {"bound", boundJson(run)}, {"metrics", run.metrics}});
+  }
   Json j = {{"datasets", all}};
-  if (scale) j["scale"] = {{"summary", summaryOf(*scale)}, {"metrics", scale->metrics}};
+  if (scale) {
+    j["scale"] = {
+        {"summary", summaryOf(*scale)}, {"bound", boundJson(*scale)}, {"metrics", scale->metrics}};
+  }
   fmt::print("{}\n", j.dump(2));
 }
 

@@ -69,6 +69,7 @@ int run(int argc, char** argv) {
   dcl::apps::addBenchPlaceCommand(*bench, config);
   dcl::apps::addBenchLoopsCommand(*bench, config);
   dcl::apps::addBenchSystemCommand(*bench, config);
+  dcl::apps::addBenchBoundCommand(*bench);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

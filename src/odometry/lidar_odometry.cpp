@@ -58,7 +58,17 @@ OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan
   RegistrationResult registration;
   registration.T_target_source = T_predicted;
   registration.converged = true;
-  if (!map_.empty()) registration = registerScan(source, map_, T_predicted, frameIcpConfig());
+  if (!map_.empty()) {
+    registration = registerScan(source, map_, T_predicted, frameIcpConfig(threshold_.sigma()));
+    // Until the robot has moved, sigma is only the initial guess, a gate of
+    // metres: wide enough to catch an unknown first motion, but against a map
+    // of one or two sparse sweeps its far pairs pull the pose centimetres off
+    // (mostly in height), and that offset stays. Refine with the narrowest
+    // gate the map's sampling allows, from where the wide pass ended.
+    if (!threshold_.learned() && registration.inliers >= config_.icp.min_inliers) {
+      registration = registerScan(source, map_, registration.T_target_source, frameIcpConfig(0.0));
+    }
+  }
   // 5. Check: too few correspondences means the pose would be a guess.
   OdometryResult result = skipped(stamp, droppedNote(clean));
   result.health = healthOf(registration, result.health.problem);
@@ -111,7 +121,7 @@ OdometryResult LidarOdometry::skipped(double stamp, std::string problem) const {
   return result;
 }
 
-IcpConfig LidarOdometry::frameIcpConfig() const {
+IcpConfig LidarOdometry::frameIcpConfig(double sigma) const {
   IcpConfig icp = config_.icp;
   // A frame enters the map thinned to one point per half voxel, so even at the
   // true pose a source point's nearest map point lies up to about half a voxel
@@ -120,9 +130,9 @@ IcpConfig LidarOdometry::frameIcpConfig() const {
   // its floor) leaves too few pairs to pull the pose back: hence 3 sigma is
   // kept at least at the map's sampling spacing.
   const double sampling_sigma = 0.5 * config_.mapVoxelSize() / 3.0;
-  const double sigma = std::max(threshold_.sigma(), sampling_sigma);
-  icp.max_correspondence_distance = 3.0 * sigma;
-  icp.kernel_scale = sigma / 3.0;
+  const double gate_sigma = std::max(sigma, sampling_sigma);
+  icp.max_correspondence_distance = 3.0 * gate_sigma;
+  icp.kernel_scale = gate_sigma / 3.0;
   return icp;
 }
 

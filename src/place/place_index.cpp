@@ -74,4 +74,26 @@ std::optional<PlaceCandidate> PlaceIndex::query(const PlaceDescriptor& query,
   return ranked.front();
 }
 
+DistinctMatch PlaceIndex::queryDistinct(const PlaceDescriptor& query,
+                                        const KeyframePosition& position, QueryScope scope) const {
+  const auto ranked = rank(query, scope);
+  DistinctMatch out;
+  if (ranked.empty() || !(ranked.front().match.distance < config_.max_distance)) return out;
+  const PlaceCandidate& best = ranked.front();
+  if (config_.distinct_ratio >= 1.0) {
+    out.best = best;
+    return out;
+  }
+  const Eigen::Vector3d at = position(best.keyframe.keyframe);
+  for (std::size_t i = 1; i < ranked.size(); ++i) {
+    if (!(best.match.distance >= config_.distinct_ratio * ranked[i].match.distance)) break;
+    if ((position(ranked[i].keyframe.keyframe) - at).norm() >= config_.distinct_separation) {
+      out.refused = best;
+      return out;
+    }
+  }
+  out.best = best;
+  return out;
+}
+
 }  // namespace dcl::place

@@ -289,7 +289,11 @@ struct RobotNode::Impl {
       count("descriptors_undecodable");
       return;
     }
-    const std::optional<place::PlaceCandidate> best = index.query(*theirs);
+    const place::DistinctMatch found = index.queryDistinct(*theirs, [this](core::KeyframeId id) {
+      return Eigen::Vector3d(mapper.keyframes().at(id.value()).T_odom_keyframe.translation());
+    });
+    if (found.refused) count("candidates_ambiguous");
+    const std::optional<place::PlaceCandidate>& best = found.best;
     if (!best) return;
     const core::KeyframeId own = best->keyframe.keyframe;
     if (n.asked.contains({own, d.keyframe})) return;

@@ -308,6 +308,30 @@ class Demo(unittest.TestCase):
         test.assertEqual(len(cells), len(points))
         return points
 
+    def check_bound(self, out, metrics):
+        """bench bound on the demo's outputs: the run and the odometry as the run's
+        metrics have them, beside the joint graph's optimum and exact loops."""
+        dataset = os.path.join(out, "dataset")
+        _, stdout, _ = run("bench", "bound", "--run", out, "--dataset", dataset, "--json")
+        bound = json.loads(stdout)
+        self.assertEqual([r["name"] for r in bound["robots"]], ["a", "b", "c"])
+        for b, m in zip(bound["robots"], metrics["robots"]):
+            self.assertAlmostEqual(b["ate_run"], m["ate_rmse"], delta=1e-6)
+            self.assertAlmostEqual(b["ate_odometry"], m["ate_rmse_odometry_only"],
+                                   delta=1e-3 * m["ate_rmse_odometry_only"])
+            for key in ("ate_own_loops", "ate_optimum", "ate_exact"):
+                self.assertGreater(b[key], 0.0, key)
+                self.assertLess(b[key], 0.5, key)
+        for key in ("own_loops", "run", "optimum", "exact"):
+            self.assertIn("mean_ate_lowered", bound["lowered"][key])
+        # A run of another dataset is named, with the robot it lacks.
+        other = os.path.join(out, "other")
+        os.makedirs(os.path.join(other, "a"))
+        code, _, err = run("bench", "bound", "--run", other, "--dataset", dataset, check=False)
+        self.assertEqual(code, 1)
+        self.assertIn("graph.g2o", err)
+        self.assertIn("'a'", err)
+
     def test_demo_runs_the_swarm_and_writes_its_outputs(self):
         with tempfile.TemporaryDirectory() as tmp:
             _, out, _ = run("demo", "--out", tmp)
@@ -332,6 +356,7 @@ class Demo(unittest.TestCase):
             # The merged map: every robot's points in its report colour, on the campus.
             points = self.check_maps(self, tmp, metrics)
             self.assertGreater(len(points), 10000)
+            self.check_bound(tmp, metrics)
         self.assertIn("ATE collab", out)
         self.assertIn("map.ply", out)
         self.assertLess(len(out.splitlines()), 12)

@@ -373,6 +373,14 @@ TEST(G2o, SymbolHelpers) {
   EXPECT_TRUE(isInterRobot({key.pack(), other.pack()}));
   EXPECT_FALSE(isInterRobot({key.pack(), key.pack() + 1}));
   EXPECT_FALSE(isInterRobot({1, 2}));
+  // A 27th robot and on: the bytes past 'z' ('{' for robot 26), as runs of 27
+  // robots write their graphs.
+  for (const int robot : {26, 100, 158}) {
+    const core::PoseKey far{core::RobotId(static_cast<std::uint8_t>(robot)), core::KeyframeId(5)};
+    ASSERT_TRUE(vertexKey(far.pack()).has_value()) << robot;
+    EXPECT_EQ(*vertexKey(far.pack()), far) << robot;
+    EXPECT_TRUE(isInterRobot({far.pack(), key.pack()})) << robot;
+  }
 }
 
 TEST(G2o, DuplicatedFixAndEquivLinesAreKept) {

@@ -279,6 +279,58 @@ TEST_F(RealIndex, OppositeDirectionRevisitGivesItsYaw) {
   EXPECT_LT(std::abs(std::abs(test::degrees(hit->match.yaw_rad)) - 180.0), 2.0);
 }
 
+/// Keyframe positions for queryDistinct: keyframe i at (10 i, 0, 0), except
+/// those given in `at`.
+KeyframePosition positions(std::map<std::size_t, double> at = {}) {
+  return [at = std::move(at)](core::KeyframeId id) {
+    const auto it = at.find(id.value());
+    return Eigen::Vector3d(it != at.end() ? it->second : 10.0 * static_cast<double>(id.value()),
+                           0.0, 0.0);
+  };
+}
+
+TEST_F(RealIndex, RealRevisitsAreDistinctFromEveryOtherPlace) {
+  const PlaceIndex index = mixedIndex();
+  for (const auto& [query, expected] :
+       std::vector<std::pair<int, int>>{{1, 0}, {95, 94}, {199, 198}}) {
+    const DistinctMatch found = index.queryDistinct(*kitti_[query], positions());
+    EXPECT_FALSE(found.refused) << query;
+    ASSERT_TRUE(found.best) << query;
+    EXPECT_EQ(&index.description(found.best->slot), kitti_[expected].get()) << query;
+  }
+}
+
+TEST_F(RealIndex, APlaceThatRepeatsElsewhereIsAmbiguous) {
+  // KITTI frame 0 stored twice, as a world of identical blocks would show it:
+  // frame 1 matches both copies equally.
+  const auto indexWithRepeat = [](const PlaceIndexConfig& config) {
+    PlaceIndex index(iris_, core::RobotId(0), config);
+    for (std::size_t i = 0; i < simulated_.size(); ++i)
+      index.add(core::KeyframeId(i), simulated_[i]);
+    index.add(core::KeyframeId(100), kitti_[0]);
+    index.add(core::KeyframeId(101), kitti_[0]);
+    return index;
+  };
+  const PlaceIndex index = indexWithRepeat({});
+  // 48 m apart: two places that look the same; the match is refused.
+  DistinctMatch found = index.queryDistinct(*kitti_[1], positions({{100, 0.0}, {101, 48.0}}));
+  EXPECT_FALSE(found.best);
+  ASSERT_TRUE(found.refused);
+  EXPECT_EQ(&index.description(found.refused->slot), kitti_[0].get());
+  // 5 m apart: one place seen twice (a revisit); the match stands.
+  found = index.queryDistinct(*kitti_[1], positions({{100, 0.0}, {101, 5.0}}));
+  EXPECT_FALSE(found.refused);
+  ASSERT_TRUE(found.best);
+  EXPECT_EQ(&index.description(found.best->slot), kitti_[0].get());
+  // The test off (the paper's search): the repeat is matched like query() does.
+  PlaceIndexConfig off;
+  off.distinct_ratio = 1.0;
+  found = indexWithRepeat(off).queryDistinct(*kitti_[1], positions({{100, 0.0}, {101, 48.0}}));
+  EXPECT_FALSE(found.refused);
+  ASSERT_TRUE(found.best);
+  EXPECT_EQ(found.best->slot, index.query(*kitti_[1])->slot);
+}
+
 TEST_F(RealIndex, SimulatedRobotSkipsItsOwnRecentPast) {
   PlaceIndexConfig config;
   config.exclude_recent = 5;

@@ -63,10 +63,12 @@ struct PoseKey {
             KeyframeId(symbol & kIndexMask)};
   }
 
-  /// True when the top byte of `symbol` is a robot character 'a'..'z' or 'A'..'Z'.
+  /// True when the top byte of `symbol` is a robot character: 'a' and above
+  /// (robots 0-25 are 'a'..'z', a 27th robot and on the bytes past 'z', so up to
+  /// 159 robots pack), or 'A'..'Z' as other tools write them.
   [[nodiscard]] static constexpr bool isSymbol(std::uint64_t symbol) {
-    const auto c = static_cast<char>(symbol >> kIndexBits);
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z');
+    const auto c = static_cast<std::uint8_t>(symbol >> kIndexBits);
+    return c >= 'a' || (c >= 'A' && c <= 'Z');
   }
 
   constexpr auto operator<=>(const PoseKey&) const = default;

@@ -85,8 +85,9 @@ class LidarOdometry final : public Odometry {
   [[nodiscard]] std::optional<std::string> checkStamp(double stamp) const;
   /// The result of a frame that does not update the state.
   [[nodiscard]] OdometryResult skipped(double stamp, std::string problem) const;
-  /// The ICP settings for this frame: 3 sigma gate, sigma / 3 kernel (KISS-ICP).
-  [[nodiscard]] IcpConfig frameIcpConfig() const;
+  /// The ICP settings for a frame registered with threshold `sigma` (m): 3 sigma
+  /// gate, sigma / 3 kernel (KISS-ICP), sigma raised to the map's sampling spacing.
+  [[nodiscard]] IcpConfig frameIcpConfig(double sigma) const;
   /// The covariance of a frame's motion from its registration.
   [[nodiscard]] core::Matrix6d covarianceOf(const RegistrationResult& registration) const;
   /// Re-deskews the first sweep once a velocity is known and anchors the odometry frame at its

@@ -108,6 +108,9 @@ class AdaptiveThreshold {
   /// m, the current sigma.
   [[nodiscard]] double sigma() const;
 
+  /// True once a frame that moved has updated sigma (before, it is the initial guess).
+  [[nodiscard]] bool learned() const { return count_ > 0; }
+
  private:
   AdaptiveThresholdConfig config_;
   double max_range_;

@@ -11,7 +11,9 @@
 /// tree grows incrementally (a logarithmic set of static trees), so a query
 /// never waits for a full rebuild.
 
+#include <Eigen/Core>
 #include <cstddef>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <vector>
@@ -36,6 +38,17 @@ struct PlaceIndexConfig {
   /// they are the robot's immediate past, not a revisit (50 keyframes, about
   /// 50 m at the paper's 1 m keyframe spacing).
   std::size_t exclude_recent = 50;
+  /// A neighbour's scan is matched to one place only if it is clearly that
+  /// place: a stored keyframe elsewhere (`distinct_separation` m or more from the
+  /// best, by the index robot's own estimate) whose distance is within the best's
+  /// divided by this ratio makes the match ambiguous, and it is refused.
+  /// Repeated structure (identical blocks, a corridor) matches every repeat
+  /// almost equally, and the loops it yields agree with each other whether
+  /// right or wrong; a real place usually beats its look-alikes by a margin.
+  /// 1: off (the paper).
+  double distinct_ratio = 0.9;
+  /// m, how far apart two stored keyframes must be to count as different places.
+  double distinct_separation = 20.0;
 
   /// Lists the fields for the YAML loader (io/config.hpp).
   template <class V>
@@ -45,6 +58,10 @@ struct PlaceIndexConfig {
             "accept a match distance below this (paper: 0.3 LiDAR-Iris, 0.35 Scan Context)");
     v.field("exclude_recent", exclude_recent,
             "most recent own keyframes skipped by intra-robot queries");
+    v.field("distinct_ratio", distinct_ratio,
+            "refuse a match when another place's distance is within the best's / this (1: off)");
+    v.field("distinct_separation", distinct_separation,
+            "m, stored keyframes this far apart are different places");
   }
 };
 
@@ -60,6 +77,15 @@ struct PlaceCandidate {
   std::size_t slot = 0;    ///< its position in the index (insertion order)
   Match match;             ///< full match: distance, yaw of T_query_candidate
   float key_distance = 0;  ///< L2 distance between the keys
+};
+
+/// Where the index robot estimates a stored keyframe to be (any fixed frame).
+using KeyframePosition = std::function<Eigen::Vector3d(core::KeyframeId)>;
+
+/// What a query that tells places apart found.
+struct DistinctMatch {
+  std::optional<PlaceCandidate> best;     ///< the match, when below the threshold and distinct
+  std::optional<PlaceCandidate> refused;  ///< the match refused as ambiguous, if one was
 };
 
 /// One robot's keyframe descriptors, searchable by key and re-ranked by match.
@@ -84,6 +110,12 @@ class PlaceIndex {
   /// The closest candidate when its distance is below `config.max_distance`.
   [[nodiscard]] std::optional<PlaceCandidate> query(
       const PlaceDescriptor& query, QueryScope scope = QueryScope::kOtherRobot) const;
+
+  /// As query(), but a match that another place (by `position`) nearly equals
+  /// is refused as ambiguous (see PlaceIndexConfig::distinct_ratio).
+  [[nodiscard]] DistinctMatch queryDistinct(const PlaceDescriptor& query,
+                                            const KeyframePosition& position,
+                                            QueryScope scope = QueryScope::kOtherRobot) const;
 
   /// Number of keyframes stored.
   [[nodiscard]] std::size_t size() const { return ids_.size(); }

@@ -1,0 +1,35 @@
+#pragma once
+
+/// How far the loops of a run could take its robots (`dcl-slam bench bound`,
+/// and a table of `bench system`). The run's joint pose graph (every robot's
+/// graph.g2o: its keyframes at their final estimates, odometry, intra- and
+/// inter-robot loops) is solved centrally, as it is and with every
+/// inter-robot loop's measurement replaced by the ground truth. Beside the
+/// odometry, the robot's own SLAM (odometry and its own loops) and the run,
+/// this tells whether a robot's ATE is limited by the distributed solve, by
+/// the loops' accuracy, or by where the robots drove: a robot whose route
+/// others barely share gains little even from exact loops, and may lose (its
+/// neighbours' drift comes in with them).
+
+#include <string>
+#include <vector>
+
+namespace dcl::apps {
+
+/// ATE RMSE (m, each robot aligned on its own by SE(3), as the run's metrics)
+/// of one robot's keyframes.
+struct RobotBound {
+  std::string name;
+  double odometry = 0.0;   ///< its odometry alone
+  double own_loops = 0.0;  ///< its odometry and its own loops, solved (single-robot SLAM)
+  double run = 0.0;        ///< the run's final estimate
+  double optimum = 0.0;    ///< the run's joint graph, solved centrally
+  double exact = 0.0;      ///< the same with every inter-robot loop exact
+};
+
+/// The bound of the run in folder `run` (outputs of `dcl-slam run`) of the
+/// dataset in folder `dataset`. Throws core::Error naming the file for a
+/// missing or inconsistent output.
+std::vector<RobotBound> computeBound(const std::string& run, const std::string& dataset);
+
+}  // namespace dcl::apps
