@@ -11,6 +11,7 @@
 /// others barely share gains little even from exact loops, and may lose (its
 /// neighbours' drift comes in with them).
 
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -31,5 +32,14 @@ struct RobotBound {
 /// dataset in folder `dataset`. Throws core::Error naming the file for a
 /// missing or inconsistent output.
 std::vector<RobotBound> computeBound(const std::string& run, const std::string& dataset);
+
+/// The mean over the robots of 1 - value / base: the ATE lowered against
+/// `base` (robots without either figure left out).
+double meanLowered(const std::vector<RobotBound>& robots, double RobotBound::*value,
+                   double RobotBound::*base);
+
+/// The robots whose `value` is not below `base` (robots without either not counted).
+std::size_t notBelow(const std::vector<RobotBound>& robots, double RobotBound::*value,
+                     double RobotBound::*base);
 
 }  // namespace dcl::apps

@@ -95,25 +95,6 @@ struct DatasetRun {
   std::vector<RobotBound> bound;  ///< own SLAM, joint optimum and exact loops (bound.hpp)
 };
 
-/// Mean of 1 - value / base over the robots (the ATE lowered against base).
-double meanLowered(const std::vector<RobotBound>& robots, double RobotBound::*value,
-                   double RobotBound::*base) {
-  std::vector<double> v;
-  for (const RobotBound& r : robots)
-    if (r.*base > 0.0 && !std::isnan(r.*value)) v.push_back(1.0 - r.*value / r.*base);
-  double sum = 0.0;
-  for (double x : v) sum += x;
-  return v.empty() ? 0.0 : sum / static_cast<double>(v.size());
-}
-
-/// Robots whose `value` is not below `base`.
-std::size_t notBelow(const std::vector<RobotBound>& robots, double RobotBound::*value,
-                     double RobotBound::*base) {
-  std::size_t n = 0;
-  for (const RobotBound& r : robots) n += r.*value >= r.*base ? 1 : 0;  // false for NaN
-  return n;
-}
-
 /// The bound tables: what each robot's own loops, the system, the joint
 /// optimum and exact loops make of its ATE.
 std::string boundTables(const std::vector<const DatasetRun*>& runs) {
