@@ -112,6 +112,7 @@ backend::PoseGraph jointGraph(const std::vector<RobotGraph>& robots, Factors fac
   for (const RobotGraph& r : robots) by_id[r.id] = &r;
   backend::PoseGraph joint;
   std::set<std::pair<core::PoseKey, core::PoseKey>> loops;
+  std::set<core::RobotId> tied;  ///< robots with an inter-robot loop in the graph
   for (const RobotGraph& r : robots) {
     for (const auto& [key, T] : r.graph.nodes()) joint.addNode(key, T);
     for (backend::Factor f : r.graph.factors()) {
@@ -132,16 +133,13 @@ backend::PoseGraph jointGraph(const std::vector<RobotGraph>& robots, Factors fac
         f.T_from_to = a.T_world_gt[i].inverse() * b.T_world_gt[j];
       }
       joint.addFactor(f);
+      tied.insert({f.from.robot, f.to.robot});
     }
   }
   // Every robot's first keyframe holds its frame: a robot without loops would
   // otherwise float, and the others are moved by their loops regardless.
-  for (const RobotGraph& r : robots) {
-    bool tied = false;
-    for (const backend::Factor& f : joint.factors())
-      tied = tied || (f.from.robot != f.to.robot && (f.from.robot == r.id || f.to.robot == r.id));
-    if (!tied || &r == &robots.front()) joint.fix({r.id, core::KeyframeId(0)});
-  }
+  for (const RobotGraph& r : robots)
+    if (!tied.contains(r.id) || &r == &robots.front()) joint.fix({r.id, core::KeyframeId(0)});
   return joint;
 }
 
