@@ -5,8 +5,8 @@
 // dataset. It never skips a scan: a process that falls behind catches up as
 // fast as it can and reports how late it got. After its last scan it lingers
 // so that the exchanges and optimisation rounds under way with its peers can
-// finish, then writes the outputs `dcl-slam run` writes per robot, and
-// robot.json (robot_outputs.hpp).
+// finish, and on while it still optimises with them (--settle), then writes the outputs `dcl-slam
+// run` writes per robot, and robot.json (robot_outputs.hpp).
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -59,6 +59,7 @@ struct RobotOptions {
   double rate = 1.0;            ///< swarm seconds per wall second
   double epoch = 0.0;           ///< s since the Unix epoch at swarm time 0; 0: now
   double linger = 10.0;         ///< s of swarm time after the last scan
+  double settle = 60.0;         ///< s more at most while the robot still optimises
   std::size_t max_frames = 0;   ///< scans at most, 0: all
   double meter_interval = 1.0;  ///< s of swarm time per traffic bin (the radio section's)
   comm::DdsConfig dds;
@@ -136,6 +137,8 @@ void validate(const RobotOptions& o) {
     throw core::Error("--epoch must be a finite number of seconds since 1970 (0: now)");
   if (!(o.linger >= 0.0) || !std::isfinite(o.linger))
     throw core::Error("--linger must be a finite number >= 0");
+  if (!(o.settle >= 0.0) || !std::isfinite(o.settle))
+    throw core::Error("--settle must be a finite number >= 0");
   try {
     comm::validate(o.dds);
   } catch (const core::Error& e) {
@@ -241,10 +244,10 @@ struct RobotPlayer {
         continue;
       }
       if (next == frames && !std::isfinite(end)) end = now + o.linger;
-      if (now >= end) break;
+      if (now >= end && (node.settled() || now >= end + o.settle)) break;
       tick();
       if (progress.enabled()) progress.update(next, note());
-      sleep(next < frames ? std::min(due(next), end) : end);
+      sleep(next < frames ? std::min(due(next), end) : std::max(end, now));
     }
     progress.finish();
     return stopSignal() == 0;
@@ -356,6 +359,10 @@ void addRobotCommand(CLI::App& app, const AppConfig& config) {
   cmd->add_option("--linger", o->linger,
                   "s of swarm time to keep running after the last scan (peers' exchanges and "
                   "optimisation rounds finish)")
+      ->capture_default_str();
+  cmd->add_option("--settle", o->settle,
+                  "s of swarm time at most to keep running after --linger while rounds with "
+                  "peers go on (their last loops and unconverged rounds)")
       ->capture_default_str();
   cmd->add_option("--max-frames", o->max_frames, "scans to play at most (0: all)")
       ->capture_default_str();

@@ -45,6 +45,7 @@ struct SimulateOptions {
   std::size_t max_scans = 0;          ///< > 0: cut every route to this many scans
   bool no_motion_distortion = false;  ///< scans without motion distortion
   bool no_noise = false;              ///< scans without range noise and dropout
+  bool perfect_lasers = false;        ///< every robot's lasers exactly on the published table
 };
 
 struct BenchSimOptions {
@@ -127,8 +128,10 @@ void runSimulate(const SimulateOptions& o) {
   sim::Preset preset = sim::makePreset(
       o.preset, {.data_dir = o.data, .seed = o.seed, .robots = o.robots, .sensor = o.sensor});
   cutRoutes(preset, o.max_scans);
-  const io::DatasetSpec spec = sim::writeSimDataset(
-      o.out, preset, {.motion_distortion = !o.no_motion_distortion, .noise = !o.no_noise});
+  const io::DatasetSpec spec = sim::writeSimDataset(o.out, preset,
+                                                    {.motion_distortion = !o.no_motion_distortion,
+                                                     .noise = !o.no_noise,
+                                                     .calibration_error = !o.perfect_lasers});
   printSummary(preset, spec, o.out);
   if (format) exportScans(spec, o.out, *format);
 }
@@ -268,7 +271,11 @@ void addSimulateCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_flag("--no-motion-distortion", o->no_motion_distortion,
                 "scans as if the sensor stood still during each sweep");
-  cmd->add_flag("--no-noise", o->no_noise, "scans without range noise and dropout");
+  cmd->add_flag("--no-noise", o->no_noise,
+                "scans without range noise, dropout and calibration error");
+  cmd->add_flag("--perfect-lasers", o->perfect_lasers,
+                "every robot's lasers exactly where the published beam table says (no "
+                "calibration error)");
   cmd->callback([o] { runSimulateCommand(*o); });
 }
 

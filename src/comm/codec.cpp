@@ -317,8 +317,13 @@ void fillState(wire::DgsState& w, const DgsState& m) {
   w.set_round(m.round);
   w.set_stage(static_cast<std::uint32_t>(m.stage));
   w.set_iteration(m.iteration);
-  w.set_flags((m.initialised ? 1U : 0U) | (m.converged ? 2U : 0U) | (m.abort ? 4U : 0U));
+  w.set_flags((m.initialised ? 1U : 0U) | (m.converged ? 2U : 0U) | (m.abort ? 4U : 0U) |
+              (m.warm ? 8U : 0U));
   w.set_change(m.change);
+  if (m.frame) {
+    if (!m.frame->valid()) throw core::Error("encode: invalid round frame");
+    w.set_frame(m.frame->value() + 1U);
+  }
   if (m.progress.size() > kMaxAcks) throw core::Error("encode: more than kMaxAcks group members");
   for (const MemberProgress& p : m.progress) {
     if (!p.robot.valid() || p.iteration < 0 || p.converged_since < -1)
@@ -438,18 +443,21 @@ LoopMeasurement bodyIn(const wire::LoopMeasurement& w) {
 DgsState stateIn(const wire::DgsState& w, const char* what) {
   const std::string where(what);
   if (w.stage() >= kOptimisationStages) invalid(where + ": unknown optimisation stage");
-  if (w.flags() > 7U) invalid(where + ": unknown flags");
+  if (w.flags() > 15U) invalid(where + ": unknown flags");
   if (!std::isfinite(w.change()) || w.change() < 0.0F)
     invalid(where + ": change negative or not finite");
   if (static_cast<std::size_t>(w.progress_size()) > kMaxAcks)
     invalid(where + ": too many group members");
+  if (w.frame() > kMaxRobot + 1U) invalid(where + ": the round's frame is not a robot id (0..254)");
   DgsState m;
+  if (w.frame() > 0U) m.frame = core::RobotId(static_cast<std::uint8_t>(w.frame() - 1U));
   m.round = w.round();
   m.stage = static_cast<OptimisationStage>(w.stage());
   m.iteration = w.iteration();
   m.initialised = (w.flags() & 1U) != 0;
   m.converged = (w.flags() & 2U) != 0;
   m.abort = (w.flags() & 4U) != 0;
+  m.warm = (w.flags() & 8U) != 0;
   m.change = w.change();
   for (const wire::MemberProgress& p : w.progress()) {
     if (p.robot() > kMaxRobot) invalid(where + ": a group member is not a robot id (0..254)");

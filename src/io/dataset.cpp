@@ -153,6 +153,9 @@ SimSpec readSim(MapReader sim) {
     out.motion_distortion = sim.boolean("motion_distortion", *n);
   }
   if (auto n = sim.optional("noise")) out.noise = sim.boolean("noise", *n);
+  if (auto n = sim.optional("calibration_error")) {
+    out.calibration_error = sim.boolean("calibration_error", *n);
+  }
   sim.finish();
   return out;
 }
@@ -269,6 +272,8 @@ void writeSim(std::ostream& out, const SimSpec& sim) {
   out << "  seed: " << sim.seed << "  # world and scan noise derive from it\n";
   out << "  motion_distortion: " << (sim.motion_distortion ? "true" : "false") << "\n";
   out << "  noise: " << (sim.noise ? "true" : "false") << "  # range noise and dropout\n";
+  out << "  calibration_error: " << (sim.calibration_error ? "true" : "false")
+      << "  # with noise: each robot's lasers off the published table\n";
 }
 
 void writeRobot(std::ostream& out, const RobotSpec& robot) {

@@ -93,6 +93,15 @@ std::optional<backend::DgsMessage> fromWire(const comm::Message& message) {
   return out;
 }
 
+RoundOrigin roundOrigin(const comm::Message& message) {
+  const comm::DgsState* state = nullptr;
+  if (const auto* s = std::get_if<comm::DgsState>(&message.body)) state = s;
+  if (const auto* r = std::get_if<comm::RotationEstimates>(&message.body)) state = &r->state;
+  if (const auto* p = std::get_if<comm::PoseEstimates>(&message.body)) state = &p->state;
+  if (state == nullptr) return {};
+  return {state->frame, state->warm};
+}
+
 comm::Body toWire(const RefineMessage& m) {
   comm::DgsState state;
   state.round = m.round;

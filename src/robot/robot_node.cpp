@@ -108,12 +108,14 @@ struct Refinement {
   double last_sent = 0.0;
 };
 
-/// `body` (a DGS message) with every member of `group` in its progress: a
-/// member not heard of yet as not started. The progress a DGS agent relays
-/// holds only the members it has heard from, and a robot joining on a first
-/// message must learn the whole group from it.
-Body withMembers(Body body, const std::set<core::RobotId>& group) {
+/// `body` (a DGS message) with every member of `group` in its progress (a
+/// member not heard of yet as not started) and how the round starts. The
+/// progress a DGS agent relays holds only the members it has heard from, and
+/// a robot joining on a first message must learn the whole group from it.
+Body withMembers(Body body, const std::set<core::RobotId>& group, const RoundOrigin& origin) {
   const auto add = [&](comm::DgsState& state) {
+    state.frame = origin.frame;
+    state.warm = origin.warm;
     for (const core::RobotId member : group) {
       const bool listed =
           std::any_of(state.progress.begin(), state.progress.end(),
@@ -131,6 +133,10 @@ Body withMembers(Body body, const std::set<core::RobotId>& group) {
 struct Round {
   std::uint32_t number = 0;  ///< the initiator's counter << 8 | the initiator's id
   std::set<core::RobotId> group;
+  /// The robot whose first keyframe anchors the round (the initiator's frame:
+  /// DGS holds the lowest member's first pose where it is), and whether the
+  /// refinement starts from the members' current estimates.
+  RoundOrigin origin;
   backend::DgsAgent agent;
   double started = 0.0;
   backend::PoseGraph graph;  ///< the own part of the graph it optimises
@@ -182,6 +188,12 @@ struct RobotNode::Impl {
   double last_announce = kNever;
   std::vector<std::pair<core::RobotId, std::uint32_t>> last_signature;
   std::map<core::KeyframeId, Eigen::Isometry3d> optimised;  ///< own poses after the last round
+  /// The robot whose first keyframe anchors the own estimates: this robot's
+  /// until a round places it, then that round's. None: a round of unknown frame.
+  std::optional<core::RobotId> frame;
+  /// The last round finished on its step cap, not converged: the group goes
+  /// on with it (a warm round) even if no loop changed.
+  bool last_round_capped = false;
   /// The cost share of the step at which each recent round's refinement ended:
   /// a member whose copy was lost still waits for it, and asks by sending its own.
   std::map<std::uint32_t, RefineMessage> final_shares;
@@ -194,7 +206,8 @@ struct RobotNode::Impl {
         mapper(transport.self(), c.mapper),
         iris(c.descriptor.iris),
         descriptor(place::makeDescriptor(c.descriptor)),
-        index(descriptor, transport.self(), c.index) {
+        index(descriptor, transport.self(), c.index),
+        frame(transport.self()) {
     validate(config);
     config.pcm.intra_loops = false;
   }
@@ -271,7 +284,7 @@ struct RobotNode::Impl {
         a != nullptr && a->stage == comm::OptimisationStage::idle)
       return onAnnouncement(from, *a);
     if (std::optional<RefineMessage> r = refineFromWire(m)) return onRefine(*r);
-    if (std::optional<backend::DgsMessage> dgs = fromWire(m)) onDgs(*dgs);
+    if (std::optional<backend::DgsMessage> dgs = fromWire(m)) onDgs(*dgs, roundOrigin(m));
   }
 
   /// Stage 1 received: the neighbour's chain grows; the own index is searched.
@@ -483,8 +496,10 @@ struct RobotNode::Impl {
     if (round || now - last_round_end < config.optimise_period) return;
     const std::set<core::RobotId> members = group();
     if (members.size() < 2 || *members.begin() != self) return;
-    if (signature(members) == last_signature) return;
-    join(((++rounds_started) << 8U) | self.value(), members);
+    // Same loops: nothing to do, unless the last round ran out of steps.
+    const bool again = signature(members) == last_signature;
+    if (again && !(last_round_capped && frame)) return;
+    join(((++rounds_started) << 8U) | self.value(), members, {frame, again});
   }
 
   /// The own part of the graph a round optimises: own poses at their latest
@@ -505,11 +520,13 @@ struct RobotNode::Impl {
     return g;
   }
 
-  void join(std::uint32_t number, const std::set<core::RobotId>& members) {
+  void join(std::uint32_t number, const std::set<core::RobotId>& members,
+            const RoundOrigin& origin) {
     if (round) leave("dgs_rounds_abandoned");
     backend::PoseGraph graph = roundGraph(members);
     round.emplace(Round{number,
                         members,
+                        origin,
                         backend::DgsAgent(self, graph, config.dgs),
                         now,
                         std::move(graph),
@@ -532,11 +549,12 @@ struct RobotNode::Impl {
     round.reset();
     last_round_end = now;
     last_signature.clear();
+    last_round_capped = false;
     count(why);
     spdlog::debug("robot {}: t {:.1f}: leaves its round ({})", core::robotName(self), now, why);
   }
 
-  void onDgs(const backend::DgsMessage& m) {
+  void onDgs(const backend::DgsMessage& m, const RoundOrigin& origin) {
     if (finished.contains(m.round)) return;
     if (!round || m.round != round->number) {
       // A round led by a lower robot wins over this robot's own.
@@ -547,7 +565,7 @@ struct RobotNode::Impl {
       std::set<core::RobotId> members{m.from};
       for (const auto& [robot, p] : m.progress) members.insert(robot);
       if (!members.contains(self)) return count("dgs_ignored");
-      join(m.round, members);
+      join(m.round, members, origin);
     }
     auto& [step, left] = round->heard[m.from];
     step = std::max(step, m.iteration);
@@ -575,7 +593,7 @@ struct RobotNode::Impl {
       if (!membersInStep()) return;
       round->agent.iterate();
       for (const backend::DgsMessage& m : round->agent.outgoing())
-        messenger.send(m.to, withMembers(toWire(m), round->group), now);
+        messenger.send(m.to, withMembers(toWire(m), round->group, round->origin), now);
       if (round->agent.stage() != backend::DgsStage::done) return;
       count("dgs_iterations_rotation", round->agent.stageIterations(backend::DgsStage::rotation));
       count("dgs_iterations_pose", round->agent.stageIterations(backend::DgsStage::pose));
@@ -607,9 +625,11 @@ struct RobotNode::Impl {
     return true;
   }
 
-  void finishRound(const PoseMap& estimates) {
+  void finishRound(const PoseMap& estimates, bool capped = false) {
     for (const auto& [key, T] : estimates)
       if (key.robot == self) optimised[key.keyframe] = T;
+    frame = round->origin.frame;
+    last_round_capped = capped;
     finished.insert(round->number);
     round.reset();
     last_round_end = now;
@@ -618,12 +638,28 @@ struct RobotNode::Impl {
 
   // ---- the refinement within a round ----------------------------------------
 
-  /// The refinement's block: own poses at DGS's estimates, the round's factors;
-  /// the neighbours' separators come with their first messages.
+  /// The refinement's block: the round's factors, and own poses at DGS's
+  /// estimates, or, in a warm round, where the last round left them (when in
+  /// the round's frame; DGS's estimates are in it too). The neighbours'
+  /// separators come with their first messages.
+  ///
+  /// A round whose refinement used all its steps is followed by a warm one
+  /// with the same loops: DGS solves a relaxation from scratch (its estimate
+  /// costs about twice the optimum's), and starting over from it would throw
+  /// away what the last round's steps gained. Rounds with new loops start
+  /// from DGS: its global linear solve takes in a large new correction
+  /// sooner than block steps from the old estimate do.
   void startRefinement() {
+    const bool warm = round->origin.warm && frame && round->origin.frame == frame;
+    count(warm ? "refine_warm_starts" : "refine_cold_starts");
     backend::PoseGraph local;
-    for (const auto& [key, T] : round->agent.estimates())
-      if (key.robot == self) local.addNode(key, T);
+    if (warm) {
+      for (const auto& [key, T] : round->graph.nodes())
+        if (key.robot == self) local.addNode(key, T);
+    } else {
+      for (const auto& [key, T] : round->agent.estimates())
+        if (key.robot == self) local.addNode(key, T);
+    }
     for (const backend::Factor& f : round->graph.factors()) local.addFactor(f);
     if (self == *round->group.begin() && local.size() > 0) local.fix(local.nodes().begin()->first);
     round->refine.emplace(Refinement{backend::RefineAgent(self, local, config.refine),
@@ -779,7 +815,7 @@ struct RobotNode::Impl {
         if (r.schedule->rounds() > 0)
           counters["refine_cost_ratio_last"] =
               r.schedule->cost() / r.schedule->roundCosts().front();
-        return finishRound(r.agent.estimates());
+        return finishRound(r.agent.estimates(), !r.schedule->converged());
       }
       nextStep(r);
     }
@@ -872,6 +908,13 @@ backend::PoseGraph RobotNode::graph() const {
     g.addFactor(f);
   }
   return g;
+}
+
+bool RobotNode::settled() const {
+  const Impl& i = *impl_;
+  if (i.round || i.last_round_capped) return false;
+  const std::set<core::RobotId> members = i.group();
+  return members.size() < 2 || i.signature(members) == i.last_signature;
 }
 
 const std::map<std::string, double>& RobotNode::counters() const {

@@ -21,6 +21,7 @@ struct Recipe {
   int default_robots;  ///< robots when options.robots == 0
   bool fixed_robots;   ///< the robot count cannot change (KITTI splits)
   std::function<std::vector<Route>(const PresetOptions&, int robots)> routes;
+  bool calibration_error = true;  ///< the robots' lasers off the published table
 };
 
 std::vector<Route> kitti(const PresetOptions& options, const std::string& sequence) {
@@ -74,9 +75,14 @@ const std::vector<Recipe>& recipes() {
       kittiRecipe("08", 2),
       campusRecipe(3),
       campusRecipe(9),
+      // Perfect lasers: the corridor tests place recognition and PCM against
+      // aliasing. With the lasers' calibration errors the odometry along its
+      // bare walls drifts 4 % (0.7 % with perfect lasers), more than the
+      // odometry covariance PCM checks loops against allows, and PCM keeps
+      // a consistent set of aliases instead of the true loops.
       {"aliasing-3", "3 robots along a corridor of identical blocks (perceptual aliasing), VLP-16",
        "aliasing", "vlp16", kUgvMountHeight, 3, false,
-       [](const PresetOptions& o, int n) { return aliasingRoutes(n, o.seed); }},
+       [](const PresetOptions& o, int n) { return aliasingRoutes(n, o.seed); }, false},
       {"demo", "small and fast: 3 robots on ~180 m campus loops with overlaps, VLP-16", "campus",
        "vlp16", kUgvMountHeight, 3, false, demoRoutes},
   };
@@ -129,6 +135,7 @@ Preset makePreset(const std::string& name, const PresetOptions& options) {
   preset.sensor = sensorOf(recipe, options.sensor);
   preset.mount_height = recipe.mount_height;
   preset.seed = options.seed;
+  preset.calibration_error = recipe.calibration_error;
   preset.routes = recipe.routes(options, robotCount(recipe, options.robots));
   return preset;
 }

@@ -2,6 +2,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -100,6 +101,45 @@ struct BeamTable {
   }
 };
 
+/// Where one unit's lasers really point and how far off their ranges read
+/// (BeamCalibration): the rays are cast along the true elevations, while the
+/// returns are reported along the tabled ones, as a driver converts them.
+class UnitBeams {
+ public:
+  UnitBeams(const LidarModel& model, const BeamCalibration& unit) {
+    if (unit.empty()) return;
+    if (unit.elevation_error_deg.size() != model.elevations_deg.size() ||
+        unit.range_offset.size() != model.elevations_deg.size()) {
+      throw core::Error("a beam calibration of " + std::to_string(unit.elevation_error_deg.size()) +
+                        " elevation errors and " + std::to_string(unit.range_offset.size()) +
+                        " range offsets does not fit LiDAR model '" + model.name + "' of " +
+                        std::to_string(model.elevations_deg.size()) + " lasers");
+    }
+    for (std::size_t r = 0; r < model.elevations_deg.size(); ++r) {
+      const double tabled = core::deg2rad(model.elevations_deg[r]);
+      const double real = core::deg2rad(model.elevations_deg[r] + unit.elevation_error_deg[r]);
+      horizontal_scale_.push_back(static_cast<float>(std::cos(real) / std::cos(tabled)));
+      vertical_.push_back(static_cast<float>(std::sin(real)));
+      range_offset_.push_back(static_cast<float>(unit.range_offset[r]));
+    }
+  }
+
+  /// The true direction of ring `ring`'s beam whose tabled direction is `tabled`.
+  [[nodiscard]] Eigen::Vector3f direction(const Eigen::Vector3f& tabled, int ring) const {
+    if (vertical_.empty()) return tabled;
+    const auto r = static_cast<std::size_t>(ring);
+    return {tabled.x() * horizontal_scale_[r], tabled.y() * horizontal_scale_[r], vertical_[r]};
+  }
+  [[nodiscard]] float rangeOffset(int ring) const {
+    return range_offset_.empty() ? 0.0f : range_offset_[static_cast<std::size_t>(ring)];
+  }
+
+ private:
+  std::vector<float> horizontal_scale_;  ///< cos(true elevation) / cos(tabled elevation)
+  std::vector<float> vertical_;          ///< sin(true elevation)
+  std::vector<float> range_offset_;
+};
+
 /// True when the beam from the sensor's origin along `direction` meets `box`
 /// within `max_range` (slab test).
 bool meetsBox(const Eigen::AlignedBox3d& box, const Eigen::Vector3d& direction, double max_range) {
@@ -178,9 +218,10 @@ struct ScanSimulator::Impl {
                                                            double stamp) const;
   /// Casts the columns of block `block` and writes their beams' returns.
   void castBlock(int block, std::span<const Eigen::Isometry3f> poses, double stamp,
-                 std::uint64_t seed, std::span<BeamReturn> returns) const;
-  /// What the sensor reports for a hit: noise, dropout and range limits applied.
-  [[nodiscard]] BeamReturn measure(const RayHit& hit, BeamRandom& random) const;
+                 std::uint64_t seed, const UnitBeams& unit, std::span<BeamReturn> returns) const;
+  /// What the sensor reports for a hit: the laser's range offset, noise,
+  /// dropout and range limits applied.
+  [[nodiscard]] BeamReturn measure(const RayHit& hit, float range_offset, BeamRandom& random) const;
   /// The returns as a cloud, column by column, rings in order within a column.
   [[nodiscard]] core::PointCloud collect(std::span<const BeamReturn> returns) const;
 };
@@ -195,22 +236,25 @@ std::vector<Eigen::Isometry3f> ScanSimulator::Impl::columnPoses(const core::Traj
   return poses;
 }
 
-BeamReturn ScanSimulator::Impl::measure(const RayHit& hit, BeamRandom& random) const {
+BeamReturn ScanSimulator::Impl::measure(const RayHit& hit, float range_offset,
+                                        BeamRandom& random) const {
   if (!hit.hit()) return {};
   if (!options.noise) {
-    if (hit.range < model.min_range) return {};
-    return {hit.range, std::clamp(intensityOf(hit), 0.0f, 1.0f)};
+    const float range = hit.range + range_offset;
+    if (range < model.min_range) return {};
+    return {range, std::clamp(intensityOf(hit), 0.0f, 1.0f)};
   }
   if (random.uniform() < model.dropout) return {};
   const auto [range_noise, intensity_noise] = random.gaussianPair();
-  const float range = hit.range + static_cast<float>(model.range_noise_sigma) * range_noise;
+  const float range =
+      hit.range + range_offset + static_cast<float>(model.range_noise_sigma) * range_noise;
   if (range < model.min_range || range > model.max_range) return {};
   const float intensity = intensityOf(hit) + kIntensity.noise_sigma * intensity_noise;
   return {range, std::clamp(intensity, 0.0f, 1.0f)};
 }
 
 void ScanSimulator::Impl::castBlock(int block, std::span<const Eigen::Isometry3f> poses,
-                                    double stamp, std::uint64_t seed,
+                                    double stamp, std::uint64_t seed, const UnitBeams& unit,
                                     std::span<BeamReturn> returns) const {
   const int first = block * kColumnsPerBlock;
   const int last = std::min(first + kColumnsPerBlock, beams.columns);
@@ -222,7 +266,7 @@ void ScanSimulator::Impl::castBlock(int block, std::span<const Eigen::Isometry3f
     for (int r = 0; r < beams.rings; ++r) {
       auto& ray = rays[static_cast<std::size_t>(c * beams.rings + r) - offset];
       ray.origin = T_world_sensor.translation();
-      ray.direction = T_world_sensor.linear() * beams.direction(r, c);
+      ray.direction = T_world_sensor.linear() * unit.direction(beams.direction(r, c), r);
     }
   }
   std::vector<RayHit> hits(count);
@@ -232,7 +276,7 @@ void ScanSimulator::Impl::castBlock(int block, std::span<const Eigen::Isometry3f
     for (int r = 0; r < beams.rings; ++r, ++i) {
       if (beams.blocked[offset + i]) continue;  // stays "no return"
       BeamRandom random(seed, stamp, r, c);
-      returns[offset + i] = measure(hits[i], random);
+      returns[offset + i] = measure(hits[i], unit.rangeOffset(r), random);
     }
   }
 }
@@ -271,12 +315,15 @@ const LidarModel& ScanSimulator::model() const {
 }
 
 core::PointCloud ScanSimulator::scan(const core::Trajectory& T_world_sensor, double stamp,
-                                     std::uint64_t seed) const {
+                                     std::uint64_t seed, const BeamCalibration& unit) const {
   if (T_world_sensor.empty()) throw core::Error("cannot simulate a scan on an empty trajectory");
+  const UnitBeams unit_beams(impl_->model, unit);
   const auto poses = impl_->columnPoses(T_world_sensor, stamp);
   std::vector<BeamReturn> returns(impl_->model.raysPerScan());
   const int blocks = (impl_->beams.columns + kColumnsPerBlock - 1) / kColumnsPerBlock;
-  const auto cast_block = [&](int block) { impl_->castBlock(block, poses, stamp, seed, returns); };
+  const auto cast_block = [&](int block) {
+    impl_->castBlock(block, poses, stamp, seed, unit_beams, returns);
+  };
   if (impl_->options.parallel) {
     tbb::parallel_for(0, blocks, cast_block);
   } else {

@@ -70,6 +70,10 @@ std::uint64_t scanSeed(std::uint64_t dataset_seed, std::size_t robot, std::size_
   return mix(mix(mix(dataset_seed) ^ robot) ^ index);
 }
 
+std::uint64_t unitSeed(std::uint64_t dataset_seed, std::size_t robot) {
+  return mix(mix(mix(dataset_seed) ^ robot) ^ ~std::uint64_t{0});  // no scan has index ~0
+}
+
 // ---- SimWorld ----
 
 struct SimWorld::Impl {
@@ -77,6 +81,7 @@ struct SimWorld::Impl {
   std::vector<core::Trajectory> ground_truth;
   World world;
   ScanSimulator simulator;
+  std::vector<BeamCalibration> units;  ///< each robot's LiDAR; perfect ones without noise
 
   Impl(const io::DatasetSpec& s, std::vector<core::Trajectory> gt, const SimWorldOptions& options)
       : spec(s),
@@ -84,7 +89,13 @@ struct SimWorld::Impl {
         world(generateWorldOfKind(
             requireSim(s).world,
             {.routes = ground_truth, .mount_height = s.mount_height, .seed = s.sim->seed})),
-        simulator(world, modelOf(s), scanOptionsOf(*s.sim, options)) {}
+        simulator(world, modelOf(s), scanOptionsOf(*s.sim, options)) {
+    for (std::size_t r = 0; r < ground_truth.size(); ++r) {
+      units.push_back(s.sim->noise && s.sim->calibration_error
+                          ? BeamCalibration::draw(simulator.model(), unitSeed(s.sim->seed, r))
+                          : BeamCalibration{});
+    }
+  }
 };
 
 SimWorld::SimWorld(const io::DatasetSpec& spec, const SimWorldOptions& options) {
@@ -101,7 +112,8 @@ core::PointCloud SimWorld::scan(std::size_t robot, std::size_t index) const {
     throw core::Error(fmt::format("robot '{}': no scan {} (it has {})",
                                   impl_->spec.robots[robot].name, index, gt.size()));
   }
-  return impl_->simulator.scan(gt, gt.stamp(index), scanSeed(impl_->spec.sim->seed, robot, index));
+  return impl_->simulator.scan(gt, gt.stamp(index), scanSeed(impl_->spec.sim->seed, robot, index),
+                               impl_->units[robot]);
 }
 
 std::size_t SimWorld::robots() const {
@@ -188,10 +200,12 @@ io::DatasetSpec writeSimDataset(const std::string& folder, const Preset& preset,
   spec.description = preset.description;
   spec.sensor = preset.sensor;
   spec.mount_height = preset.mount_height;
-  spec.sim = io::SimSpec{.world = *kind,
-                         .seed = preset.seed,
-                         .motion_distortion = options.motion_distortion,
-                         .noise = options.noise};
+  spec.sim =
+      io::SimSpec{.world = *kind,
+                  .seed = preset.seed,
+                  .motion_distortion = options.motion_distortion,
+                  .noise = options.noise,
+                  .calibration_error = options.calibration_error && preset.calibration_error};
   for (const Route& route : preset.routes) {
     const std::string gt = "ground_truth/" + route.name + ".tum";
     io::writeTumPoses((fs::path(folder) / gt).string(), route.T_world_sensor);

@@ -55,6 +55,8 @@ void validate(const std::vector<SwarmMember>& members, const SwarmConfig& config
     throw core::Error("swarm config: step must be a finite number > 0");
   if (!(config.drain >= 0.0) || !std::isfinite(config.drain))
     throw core::Error("swarm config: drain must be finite and at least 0");
+  if (!(config.settle >= 0.0) || !std::isfinite(config.settle))
+    throw core::Error("swarm config: settle must be finite and at least 0");
   if (config.threads < 0) throw core::Error("swarm config: threads must be at least 0");
   validate(config.map);
   for (const SwarmMember& m : members) {
@@ -178,8 +180,13 @@ SwarmResult runSwarm(std::vector<SwarmMember> members, const SwarmConfig& config
     status.robots.push_back({.name = m.spec.name, .total_frames = m.frames});
 
   tbb::task_arena arena(config.threads > 0 ? config.threads : tbb::task_arena::automatic);
+  const auto optimising = [&](double t) {
+    return std::any_of(robots.begin(), robots.end(),
+                       [&](const Member& m) { return !m.left(t) && !m.node->settled(); });
+  };
   double time = 0.0;
-  for (std::size_t k = 0; time <= end; time = static_cast<double>(++k) * config.step) {
+  for (std::size_t k = 0; time <= end || (time <= end + config.settle && optimising(time));
+       time = static_cast<double>(++k) * config.step) {
     for (std::size_t r = 0; r < robots.size(); ++r) {
       const core::Trajectory& truth = robots[r].spec.ground_truth;
       if (truth.empty()) continue;

@@ -269,6 +269,16 @@ TEST(Codec, StateSummariesAndHeartbeatsRoundTrip) {
   EXPECT_FALSE(gs.progress[0].finished);
   EXPECT_EQ(gs.progress[1].converged_since, -1);
   EXPECT_TRUE(gs.progress[1].finished);
+  EXPECT_FALSE(gs.frame);
+  EXPECT_FALSE(gs.warm);
+  s.frame = robot(0);  // robot 0 must not read back as "no frame"
+  s.warm = true;
+  const DgsState warm = roundTrip(header(4, std::nullopt), s);
+  EXPECT_EQ(warm.frame, robot(0));
+  EXPECT_TRUE(warm.warm);
+  EXPECT_TRUE(warm.abort);
+  s.frame = robot(254);
+  EXPECT_EQ(roundTrip(header(4, std::nullopt), s).frame, robot(254));
 
   Heartbeat h{31.25, 512, {{robot(0), 2, 40, 3}, {robot(7), 1, 0, 12}}};
   const Heartbeat gh = roundTrip(header(1, std::nullopt), h);

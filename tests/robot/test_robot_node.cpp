@@ -2,6 +2,7 @@
 // drive the same street a few seconds apart, so every place one sees the
 // other sees too. The three-stage exchange must find the loops, verify them
 // to the true relative pose, and both robots must keep the same loops.
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
@@ -15,6 +16,7 @@
 #include <gtest/gtest.h>
 #include <spdlog/spdlog.h>
 
+#include <dcl/backend/centralized_solver.hpp>
 #include <dcl/comm/sim_radio.hpp>
 #include <dcl/core/se3.hpp>
 #include <dcl/eval/run_report.hpp>
@@ -33,16 +35,17 @@ struct SwarmRun {
   std::unique_ptr<comm::SimRadio> radio;
 };
 
-/// Plays the convoy's scans, then `drain` s more of ticks for the rounds to end.
+/// Plays the convoy's scans, then `drain` s more of ticks for the rounds to
+/// end, and on while a robot has not settled (60 s at most), as a swarm run does.
 SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_config = {},
-               double drain = 10.0) {
+               double drain = 10.0, const RobotConfig& config = {}) {
   if (std::getenv("DCL_TEST_DEBUG")) spdlog::set_level(spdlog::level::debug);
   SwarmRun run;
   run.radio = std::make_unique<comm::SimRadio>(radio_config);
   std::vector<std::unique_ptr<io::ScanSource>> scans = sim::openDatasetScans(convoy.spec);
   for (std::size_t r = 0; r < scans.size(); ++r) {
     const core::RobotId id(static_cast<std::uint8_t>(r));
-    run.nodes.push_back(std::make_unique<RobotNode>(run.radio->endpoint(id), RobotConfig{}));
+    run.nodes.push_back(std::make_unique<RobotNode>(run.radio->endpoint(id), config));
     run.ground_truth.push_back(io::readGroundTruth(convoy.spec, r));
   }
   const std::size_t frames = scans[0]->size();
@@ -67,7 +70,13 @@ SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_con
     }
   }
   const auto ticks = static_cast<int>(std::lround(drain / 0.02));
-  for (int extra = 1; extra <= ticks; ++extra) tickAll(t + 0.02 * extra);
+  const auto settled = [&] {
+    return std::all_of(run.nodes.begin(), run.nodes.end(),
+                       [](const auto& node) { return node->settled(); });
+  };
+  const int most = ticks + static_cast<int>(std::lround(60.0 / 0.02));
+  for (int extra = 1; extra <= ticks || (extra <= most && !settled()); ++extra)
+    tickAll(t + 0.02 * extra);
   return run;
 }
 
@@ -204,6 +213,56 @@ TEST(RobotNode, RefinementAfterDgsLowersTheCostAndBothRobotsDecideAlike) {
               a.at("refine_steps"), a.at("refine_cost_ratio_last"));
   EXPECT_FALSE(a.contains("refine_timeouts"));
   EXPECT_FALSE(a.contains("refine_cut_short"));
+}
+
+/// The cost of the joint graph (every robot's keyframes at its estimates,
+/// odometry, intra- and inter-robot loops) over its optimum, as a central
+/// solver finds it.
+double costOverOptimum(const SwarmRun& run) {
+  backend::PoseGraph joint;
+  std::set<backend::LoopId> loops;
+  for (const auto& node : run.nodes) {
+    for (const core::Keyframe& k : node->keyframes())
+      joint.addNode({node->id(), k.id}, node->estimate(k.id));
+    for (const backend::Factor& f : node->localGraph().factors()) joint.addFactor(f);
+    for (const InterLoop& loop : node->interLoops())
+      if (loop.accepted && loops.insert(backend::loopId(loop.factor)).second)
+        joint.addFactor(loop.factor);
+  }
+  EXPECT_FALSE(loops.empty());
+  joint.fix({run.nodes[0]->id(), core::KeyframeId(0)});
+  const double at_estimates = backend::graphCost(joint);
+  backend::PoseGraph optimum = joint;
+  (void)backend::solveCentralized(optimum);
+  const double best = backend::graphCost(optimum);
+  std::printf("joint graph cost: %.6g at the robots' estimates, %.6g at the optimum\n",
+              at_estimates, best);
+  return at_estimates / best;
+}
+
+TEST(RobotNode, SettledRobotsHoldTheJointOptimum) {
+  // Once every robot has settled, their estimates together are the optimum of
+  // the joint graph: the rounds leave nothing on the table.
+  const SwarmRun& run = defaultRun();
+  for (const auto& node : run.nodes) EXPECT_TRUE(node->settled()) << core::robotName(node->id());
+  EXPECT_LT(costOverOptimum(run), 1.001);
+}
+
+TEST(RobotNode, WarmRoundsCarryOnARefinementThatRanOutOfSteps) {
+  // With rounds of 30 refinement steps, few converge; each that does not is
+  // followed by a warm one that starts where it stopped (not from DGS's
+  // estimate, which would start it over), until the robots settle at the
+  // joint optimum.
+  RobotConfig config;
+  config.refine.max_rounds = 30;
+  const SwarmRun run = drive(convoy(), {}, 10.0, config);
+  for (const auto& node : run.nodes) {
+    EXPECT_TRUE(node->settled()) << core::robotName(node->id());
+    EXPECT_GT(node->counters().at("refine_warm_starts"), 0.0) << core::robotName(node->id());
+  }
+  EXPECT_EQ(run.nodes[0]->counters().at("refine_warm_starts"),
+            run.nodes[1]->counters().at("refine_warm_starts"));
+  EXPECT_LT(costOverOptimum(run), 1.001);
 }
 
 class RobotNodeLossy : public ::testing::TestWithParam<unsigned> {};

@@ -59,6 +59,37 @@ TEST(LidarModel, Vlp16Has16BeamsTwoDegreesApart) {
   EXPECT_EQ(m.raysPerScan(), 28800u);
 }
 
+TEST(BeamCalibration, EachUnitIsDrawnFromItsSeedWithTheModelsSpread) {
+  const LidarModel m = LidarModel::vlp16();
+  ASSERT_GT(m.elevation_error_sigma_deg, 0.0);
+  ASSERT_GT(m.range_offset_sigma, 0.0);
+  const BeamCalibration unit = BeamCalibration::draw(m, 7);
+  ASSERT_EQ(unit.elevation_error_deg.size(), 16u);
+  ASSERT_EQ(unit.range_offset.size(), 16u);
+  EXPECT_EQ(BeamCalibration::draw(m, 7).elevation_error_deg, unit.elevation_error_deg);
+  EXPECT_NE(BeamCalibration::draw(m, 8).elevation_error_deg, unit.elevation_error_deg);
+  // Over many units, each laser's errors spread as the model says, around zero.
+  double elevation = 0.0, range = 0.0, mean = 0.0;
+  std::size_t n = 0;
+  for (std::uint64_t seed = 0; seed < 500; ++seed) {
+    const BeamCalibration u = BeamCalibration::draw(m, seed);
+    for (std::size_t r = 0; r < 16; ++r, ++n) {
+      elevation += u.elevation_error_deg[r] * u.elevation_error_deg[r];
+      range += u.range_offset[r] * u.range_offset[r];
+      mean += u.elevation_error_deg[r];
+    }
+  }
+  EXPECT_NEAR(std::sqrt(elevation / n), m.elevation_error_sigma_deg,
+              0.05 * m.elevation_error_sigma_deg);
+  EXPECT_NEAR(std::sqrt(range / n), m.range_offset_sigma, 0.05 * m.range_offset_sigma);
+  EXPECT_NEAR(mean / n, 0.0, 0.1 * m.elevation_error_sigma_deg);
+  // A model without calibration error makes perfect units.
+  LidarModel perfect = m;
+  perfect.elevation_error_sigma_deg = 0.0;
+  perfect.range_offset_sigma = 0.0;
+  EXPECT_TRUE(BeamCalibration::draw(perfect, 7).empty());
+}
+
 TEST(LidarModel, ByNameFindsBothAndNamesTheChoicesOtherwise) {
   EXPECT_EQ(LidarModel::byName("hdl64").elevations_deg, LidarModel::hdl64().elevations_deg);
   EXPECT_EQ(LidarModel::byName("vlp16").columns, 1800);

@@ -406,6 +406,45 @@ TEST(ScanSimulator, EmptyWorldGivesAnEmptyConsistentCloud) {
   EXPECT_TRUE(cloud.consistent());
 }
 
+TEST(ScanSimulator, AMiscalibratedLaserBendsAWallAsItsErrorsSay) {
+  // The beam goes out along the laser's true elevation, the driver reports it
+  // along the tabled one: a wall 10 m ahead, seen head-on by the -15 deg laser
+  // whose true elevation is -14.5 deg and whose ranges read 0.1 m long, lies
+  // at cos(15 deg) (10 / cos(14.5 deg) + 0.1) = 10.074 m. Its other lasers,
+  // true to the table, see the wall where it is.
+  const LidarModel model = LidarModel::vlp16();
+  BeamCalibration unit;
+  unit.elevation_error_deg.assign(16, 0.0);
+  unit.range_offset.assign(16, 0.0);
+  unit.elevation_error_deg[0] = 0.5;
+  unit.range_offset[0] = 0.1;
+  const ScanSimulator sim(wallWorld(10.0), model, kExact);
+  const auto head_on_x = [](const core::PointCloud& cloud, int ring) {
+    float best = 1.0f, x = 0.0f;
+    for (std::size_t i = 0; i < cloud.size(); ++i) {
+      if (cloud.ring[i] != ring) continue;
+      const float azimuth = std::abs(std::atan2(cloud.points[i].y(), cloud.points[i].x()));
+      if (azimuth < best) best = azimuth, x = cloud.points[i].x();
+    }
+    return x;
+  };
+  const auto bent = sim.scan(still(poseAt(0, 0, 0)), 0.0, 1, unit);
+  const auto true_to_table = sim.scan(still(poseAt(0, 0, 0)), 0.0, 1);
+  const double expected =
+      std::cos(core::deg2rad(15.0)) * (10.0 / std::cos(core::deg2rad(14.5)) + 0.1);
+  EXPECT_NEAR(head_on_x(bent, 0), expected, 1e-3);
+  EXPECT_NEAR(head_on_x(true_to_table, 0), 10.0, 1e-3);
+  EXPECT_NEAR(head_on_x(bent, 5), 10.0, 1e-3);
+  // A calibration for another number of lasers is refused by name.
+  unit.range_offset.pop_back();
+  try {
+    (void)sim.scan(still(poseAt(0, 0, 0)), 0.0, 1, unit);
+    FAIL() << "no error for a calibration of the wrong size";
+  } catch (const core::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("vlp16"), std::string::npos) << e.what();
+  }
+}
+
 TEST(ScanSimulator, RefusesAnEmptyTrajectoryAndABrokenModel) {
   const ScanSimulator sim(wallWorld(5.0), LidarModel::vlp16(), {});
   EXPECT_THROW((void)sim.scan(core::Trajectory{}, 0.0, 1), core::Error);

@@ -178,11 +178,11 @@ TEST(MergedMap, TheVoxelBoundsItsSize) {
 TEST(MergedMap, TheRobotsMapsCoincideAtTheTruePoses) {
   const std::vector<VoxelMap> maps = street().maps();
   // Where the robots saw the same street, their maps lie on the same surfaces,
-  // within the sensor's noise...
+  // within the sensors' noise and their lasers' calibration errors...
   for (std::size_t r = 1; r < 3; ++r) {
     const test::MapDistance d = test::mapDistance(maps[r], maps[r - 1]);
     EXPECT_GT(d.points, maps[r].size() / 3) << r;
-    EXPECT_LT(d.median, 0.02) << r;
+    EXPECT_LT(d.median, 0.035) << r;
   }
   // ...which they do not when each cloud is placed at the next keyframe's pose,
   // or robot b's map is 10 cm off.

@@ -173,6 +173,12 @@ struct DgsState {
   bool abort = false;   ///< the sender abandons the round (a member went silent)
   float change = 0.0F;  ///< the last step's estimate change, >= 0
   std::vector<MemberProgress> progress;
+  /// In a round's DGS messages: the robot whose first keyframe anchors the
+  /// round's estimates (the initiator's frame); none: unknown.
+  std::optional<core::RobotId> frame;
+  /// In a round's DGS messages: the round goes on from the members' current
+  /// estimates (those in `frame`) instead of from DGS's.
+  bool warm = false;
 };
 
 /// Separator rotation estimates of DGS stage 1: the chordal relaxation's

@@ -80,6 +80,9 @@ struct SimSpec {
   std::uint64_t seed = 1;             ///< world and scan noise derive from it; default 1
   bool motion_distortion = true;      ///< scans distorted by the sweep's motion; default on
   bool noise = true;                  ///< range noise and dropout; default on
+  /// With noise: each robot's LiDAR with its own lasers' elevation and range
+  /// errors (sim::BeamCalibration); default on.
+  bool calibration_error = true;
 };
 
 /// The content of a dataset.yaml.

@@ -21,10 +21,17 @@ comm::Body toWire(const backend::DgsMessage& message);
 /// The DGS message a received DGS body carries; none for other kinds.
 std::optional<backend::DgsMessage> fromWire(const comm::Message& message);
 
+/// How the round a DGS body belongs to starts (comm::DgsState's frame and warm).
+struct RoundOrigin {
+  std::optional<core::RobotId> frame;  ///< none: not said, or not a DGS body
+  bool warm = false;
+};
+RoundOrigin roundOrigin(const comm::Message& message);
+
 /// One message of the distributed refinement that follows DGS in a round
 /// (backend::RefineAgent, backend::RefineSchedule): in refinement step `step`,
 /// either the sender's separator poses for the receiver (after its block step;
-/// step 0: its DGS estimates) or the sender's share of the graph's cost
+/// step 0: where its refinement starts from) or the sender's share of the graph's cost
 /// (RefineAgent::ownedCost) at the end of that step. On the wire: a
 /// comm::PoseEstimates, or a comm::DgsState carrying the share in `change`,
 /// both with stage `refine`.

@@ -89,10 +89,10 @@ struct RobotConfig {
   }();
   /// The distributed refinement after DGS in every round (max_rounds 0: DGS
   /// alone). Fewer rounds than an offline refinement: rounds repeat as loops
-  /// arrive, and each refinement round costs the group a message chain. Most
-  /// rounds stop on the tolerance within 50 steps; the cap matters for a
-  /// group's last round, whose estimate the robots keep: on `kitti05-3` a cap
-  /// of 50 left robot c at 7.1 cm where the joint optimum puts it at 4.9 cm.
+  /// arrive, and each refinement round costs the group a message chain. A
+  /// round that ends on this cap, not converged, is followed by a warm round
+  /// that goes on from its estimate, so the cap spreads a long refinement
+  /// over rounds rather than cutting it short.
   backend::RefineConfig refine = [] {
     backend::RefineConfig c;
     c.max_rounds = 200;
@@ -153,6 +153,11 @@ class RobotNode {
   /// Keyframe `k`'s pose T_world_keyframe in the frame of the robot's group
   /// (its own odometry frame until a round finished).
   [[nodiscard]] Eigen::Isometry3d estimate(core::KeyframeId k) const;
+
+  /// Nothing left to optimise with the robots in range: no round under way,
+  /// none due for changed loops, and the last one converged. A recording
+  /// played to its end leaves its robots running until they all are.
+  [[nodiscard]] bool settled() const;
 
   /// Every decision counted, by name (see the class comment).
   [[nodiscard]] const std::map<std::string, double>& counters() const;

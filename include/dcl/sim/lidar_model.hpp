@@ -4,6 +4,7 @@
 /// range limits and the sensor's imperfections.
 
 #include <Eigen/Geometry>
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -21,7 +22,15 @@ struct LidarModel {
   double max_range = 120.0;            ///< m, no return past this
   double range_noise_sigma = 0.02;     ///< m, Gaussian range noise
   double dropout = 0.03;               ///< share of beams that return nothing at random
-  double mount_height = 1.73;          ///< m, sensor above the ground on its vehicle
+  /// What a unit's factory calibration leaves: each laser's true elevation
+  /// and range zero deviate from the published table by a fixed amount, drawn
+  /// once per unit (BeamCalibration) with these standard deviations. The
+  /// driver converts with the table, so every point of that laser carries the
+  /// same bias, scan after scan: the main cause of a LiDAR odometry's drift,
+  /// which white range noise averages away.
+  double elevation_error_sigma_deg = 0.0;  ///< deg, per laser
+  double range_offset_sigma = 0.0;         ///< m, per laser
+  double mount_height = 1.73;              ///< m, sensor above the ground on its vehicle
   /// The carrying vehicle's body as a box in the sensor frame (x forward, z up):
   /// beams that meet it return nothing, as on KITTI, whose car hides the lowest
   /// beams ahead and behind. None: nothing of the vehicle is in view.
@@ -38,6 +47,17 @@ struct LidarModel {
   static LidarModel vlp16();
   /// "hdl64" or "vlp16"; throws core::Error naming the accepted names otherwise.
   static LidarModel byName(std::string_view name);
+};
+
+/// One unit's deviation from its model's beam table (LidarModel's
+/// elevation_error_sigma_deg and range_offset_sigma). Empty: a perfect unit.
+struct BeamCalibration {
+  std::vector<double> elevation_error_deg;  ///< true minus tabled elevation, per ring
+  std::vector<double> range_offset;         ///< m, added to every range of the ring
+
+  /// Draws a unit of `model` from `seed`: the same seed, the same unit.
+  static BeamCalibration draw(const LidarModel& model, std::uint64_t seed);
+  [[nodiscard]] bool empty() const { return elevation_error_deg.empty(); }
 };
 
 }  // namespace dcl::sim

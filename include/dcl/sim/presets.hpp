@@ -13,13 +13,14 @@ namespace dcl::sim {
 
 /// A dataset recipe: everything the simulator needs besides the world generator.
 struct Preset {
-  std::string name{};           ///< the preset's name, e.g. "kitti05-3"
-  std::string description{};    ///< one line for `--help` and dataset.yaml
-  std::string world{};          ///< "city" | "campus" | "aliasing"
-  std::string sensor{};         ///< "hdl64" | "vlp16"
-  double mount_height = 1.73;   ///< m, sensor above the ground (KITTI's HDL-64: 1.73)
-  std::vector<Route> routes{};  ///< one per robot, named "a", "b", ...
-  std::uint64_t seed = 1;       ///< seeds the world, the routes and the sensor noise
+  std::string name{};             ///< the preset's name, e.g. "kitti05-3"
+  std::string description{};      ///< one line for `--help` and dataset.yaml
+  std::string world{};            ///< "city" | "campus" | "aliasing"
+  std::string sensor{};           ///< "hdl64" | "vlp16"
+  double mount_height = 1.73;     ///< m, sensor above the ground (KITTI's HDL-64: 1.73)
+  std::vector<Route> routes{};    ///< one per robot, named "a", "b", ...
+  std::uint64_t seed = 1;         ///< seeds the world, the routes and the sensor noise
+  bool calibration_error = true;  ///< the robots' lasers off the published table (BeamCalibration)
 };
 
 /// What the user may change about a preset.

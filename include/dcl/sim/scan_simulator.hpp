@@ -34,10 +34,12 @@ class ScanSimulator {
   /// fired (as a driver delivers them: with motion distortion when the sensor
   /// moves), `time` is seconds since `stamp`, `ring` the beam index, `intensity`
   /// in [0, 1]. The scan's ground-truth pose is T_world_sensor at `stamp`.
-  /// Bit-identical for the same world, model, options, trajectory, stamp and seed,
-  /// whatever the number of threads.
+  /// `unit` is the sensor's deviation from the model's beam table (empty: a
+  /// perfect unit); it applies with or without ScanOptions::noise.
+  /// Bit-identical for the same world, model, options, trajectory, stamp, seed
+  /// and unit, whatever the number of threads.
   [[nodiscard]] core::PointCloud scan(const core::Trajectory& T_world_sensor, double stamp,
-                                      std::uint64_t seed) const;
+                                      std::uint64_t seed, const BeamCalibration& unit = {}) const;
 
   [[nodiscard]] const LidarModel& model() const;
 

@@ -40,7 +40,8 @@ class SimWorld {
   SimWorld(const SimWorld&) = delete;
   SimWorld& operator=(const SimWorld&) = delete;
 
-  /// Scan `index` of robot `robot`: the sweep starting at its ground-truth stamp.
+  /// Scan `index` of robot `robot`: the sweep starting at its ground-truth
+  /// stamp, by the robot's own unit (perfect without noise or calibration error).
   /// Throws core::Error for an index past the robot's ground truth.
   [[nodiscard]] core::PointCloud scan(std::size_t robot, std::size_t index) const;
 
@@ -66,6 +67,10 @@ World generateWorldOfKind(io::WorldKind kind, const WorldRequest& request);
 /// The noise seed of scan `index` of robot `robot` in a dataset seeded `dataset_seed`
 /// (a hash: neighbouring scans and robots get unrelated seeds).
 std::uint64_t scanSeed(std::uint64_t dataset_seed, std::size_t robot, std::size_t index);
+
+/// The seed robot `robot`'s LiDAR unit (BeamCalibration) is drawn from: every
+/// robot carries its own unit, with its own lasers' biases.
+std::uint64_t unitSeed(std::uint64_t dataset_seed, std::size_t robot);
 
 /// One robot's regenerated scans, as a ScanSource (stamps from its ground truth).
 class SimScanSource final : public io::ScanSource {
@@ -101,6 +106,8 @@ std::vector<std::unique_ptr<io::ScanSource>> openDatasetScans(const io::DatasetS
 struct SimDatasetOptions {
   bool motion_distortion = true;  ///< scans distorted by the motion during the sweep; default on
   bool noise = true;              ///< range noise and dropout; default on
+  bool calibration_error =
+      true;  ///< with noise: each robot's own lasers' errors where the preset has them; default on
 };
 
 /// Writes a simulated dataset for `preset` into `folder`: dataset.yaml and one

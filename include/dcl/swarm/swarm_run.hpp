@@ -33,7 +33,11 @@ struct SwarmConfig {
   comm::SimRadioConfig radio;  ///< range, bandwidth, latency, losses
   double step =
       0.02;  ///< s of simulated time per step: scans play at their stamps, messages move every step
-  double drain = 5.0;          ///< s the radio keeps running after the last scan
+  double drain = 5.0;  ///< s the radio keeps running after the last scan
+  /// s at most the run goes on past the drain while a robot still optimises
+  /// (robot::RobotNode::settled): the loops of the last seconds get their round,
+  /// and a round that ran out of steps its successors, as on robots left running.
+  double settle = 60.0;
   std::size_t max_frames = 0;  ///< scans per robot at most (0: all)
   int threads = 0;             ///< robots processed at once (0: every core)
   MapConfig map;               ///< the keyframe clouds kept for the map (0: none)
