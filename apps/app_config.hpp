@@ -61,9 +61,9 @@ struct PlaceSection {
 
 /// A robot node's own timers (robot::RobotConfig's fields outside the modules' sections).
 struct RobotSection {
-  double optimise_period = 5.0;  ///< s between the end of one optimisation round and the next
-  double round_timeout = 30.0;   ///< s after which an unfinished round is abandoned
-  double announce_period = 2.0;  ///< s between announcements of the robot's loop neighbours
+  double optimise_period = 20.0;  ///< s from the start of one optimisation round to the next
+  double round_timeout = 30.0;    ///< s a round may go without a step before it is given up
+  double announce_period = 2.0;   ///< s between announcements of the robot's loop neighbours
   /// Refinement steps after DGS in each optimisation round at most (the
   /// `refine` section's other fields apply; 0: DGS alone).
   int refine_steps = 200;
@@ -78,8 +78,9 @@ struct RobotSection {
   template <class Visitor>
   void visit(Visitor& v) {
     v.field("optimise_period", optimise_period,
-            "s between the end of one optimisation round and the start of the next");
-    v.field("round_timeout", round_timeout, "s after which an unfinished round is abandoned");
+            "s from the start of one optimisation round to the start of the next, at least");
+    v.field("round_timeout", round_timeout,
+            "s a round may go without a step before it is given up");
     v.field("announce_period", announce_period,
             "s between announcements of the robot's loop neighbours (how groups form)");
     v.field("refine_steps", refine_steps,

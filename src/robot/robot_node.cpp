@@ -138,7 +138,10 @@ struct Round {
   /// refinement starts from the members' current estimates.
   RoundOrigin origin;
   backend::DgsAgent agent;
-  double started = 0.0;
+  /// When the round last moved on (joined, a DGS step, a refinement step):
+  /// a round is given up only when it stalls, not when it is long (a group of
+  /// 27 robots takes up to half a second a refinement step).
+  double progressed = 0.0;
   backend::PoseGraph graph;  ///< the own part of the graph it optimises
   /// Per member heard from in this round: its latest DGS step, and whether it
   /// has left DGS (its last stage finished).
@@ -184,7 +187,7 @@ struct RobotNode::Impl {
   std::optional<Round> round;
   std::set<std::uint32_t> finished;  ///< rounds this robot took part in and left
   std::uint32_t rounds_started = 0;
-  double last_round_end = kNever;
+  double last_round_start = kNever;  ///< when this robot last joined a round
   double last_announce = kNever;
   std::vector<std::pair<core::RobotId, std::uint32_t>> last_signature;
   std::map<core::KeyframeId, Eigen::Isometry3d> optimised;  ///< own poses after the last round
@@ -493,7 +496,7 @@ struct RobotNode::Impl {
 
   /// The lowest robot of a group starts a round when the group's loops changed.
   void maybeStartRound() {
-    if (round || now - last_round_end < config.optimise_period) return;
+    if (round || now - last_round_start < config.optimise_period) return;
     const std::set<core::RobotId> members = group();
     if (members.size() < 2 || *members.begin() != self) return;
     // Same loops: nothing to do, unless the last round ran out of steps.
@@ -537,6 +540,7 @@ struct RobotNode::Impl {
                         {}});
     round->agent.startRound(members, number);
     last_signature = signature(members);
+    last_round_start = now;
     spdlog::debug("robot {}: t {:.1f}: joins round {} of {} robots", core::robotName(self), now,
                   number, members.size());
     count("dgs_rounds_joined");
@@ -547,7 +551,6 @@ struct RobotNode::Impl {
     round->agent.abortRound();
     finished.insert(round->number);
     round.reset();
-    last_round_end = now;
     last_signature.clear();
     last_round_capped = false;
     count(why);
@@ -581,7 +584,7 @@ struct RobotNode::Impl {
     const bool whole = std::all_of(round->group.begin(), round->group.end(), [&](core::RobotId r) {
       return r == self || present.contains(r);
     });
-    const bool late = now - round->started > config.round_timeout;
+    const bool late = now - round->progressed > config.round_timeout;
     if (round->refine && (!whole || late)) {
       // DGS's estimate and every kept refinement step are consistent in the
       // group: keep the last kept one rather than nothing.
@@ -592,6 +595,7 @@ struct RobotNode::Impl {
     if (!round->refine) {
       if (!membersInStep()) return;
       round->agent.iterate();
+      round->progressed = now;
       for (const backend::DgsMessage& m : round->agent.outgoing())
         messenger.send(m.to, withMembers(toWire(m), round->group, round->origin), now);
       if (round->agent.stage() != backend::DgsStage::done) return;
@@ -632,7 +636,6 @@ struct RobotNode::Impl {
     last_round_capped = capped;
     finished.insert(round->number);
     round.reset();
-    last_round_end = now;
     count("dgs_rounds");
   }
 
@@ -828,6 +831,7 @@ struct RobotNode::Impl {
     std::erase_if(r.sent,
                   [&](const RefineMessage& m) { return !m.cost_share || m.step != r.step; });
     ++r.step;
+    round->progressed = now;
     r.stepped = false;
     r.shared = false;
     r.applied.clear();

@@ -108,9 +108,14 @@ struct RobotConfig {
   /// and a loop trusted to micrometres bends the odometry around it.
   double loop_sigma_translation = 0.02;
   double loop_sigma_rotation = 0.0035;  ///< 0.2 deg
-  /// s between the end of one optimisation round and the start of the next.
-  double optimise_period = 5.0;
-  /// s after which a round that has not finished is abandoned.
+  /// s from the start of one optimisation round to the start of the next, at
+  /// least: a group optimises at most once a period, however fast its
+  /// messages travel. (Counted from a round's end, a swarm over DDS, whose
+  /// rounds take a second where the simulated radio's take eight, ran twice
+  /// as many rounds and sent twice the bytes.)
+  double optimise_period = 20.0;
+  /// s a round may go without a step (DGS or refinement) before it is given
+  /// up: a member stopped answering. A round that keeps stepping is not cut.
   double round_timeout = 30.0;
   /// s between announcements of this robot's loop neighbours (how groups form).
   double announce_period = 2.0;
