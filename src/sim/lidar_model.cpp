@@ -3,6 +3,8 @@
 #include <dcl/core/error.hpp>
 #include <dcl/sim/lidar_model.hpp>
 
+#include "world_detail.hpp"
+
 namespace dcl::sim {
 namespace {
 
@@ -17,26 +19,14 @@ namespace {
 constexpr double kElevationErrorSigmaDeg = 0.15;
 constexpr double kRangeOffsetSigma = 0.02;
 
-/// splitmix64: the stream a unit's calibration is drawn from.
-class SplitMix {
- public:
-  explicit SplitMix(std::uint64_t seed) : state_(seed) {}
-  /// Uniform in (0, 1].
-  double uniform() { return (static_cast<double>(next() >> 11) + 1.0) * 0x1.0p-53; }
-  /// A standard normal (Box-Muller).
-  double gaussian() {
-    return std::sqrt(-2.0 * std::log(uniform())) * std::cos(2.0 * M_PI * uniform());
-  }
-
- private:
-  std::uint64_t next() {
-    std::uint64_t z = (state_ += 0x9e3779b97f4a7c15ULL);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
-    return z ^ (z >> 31);
-  }
-  std::uint64_t state_;
-};
+/// A standard normal from `random` (Box-Muller on two uniforms in (0, 1]).
+double gaussian(detail::Rng& random) {
+  const auto open_unit = [&] {
+    return (static_cast<double>(random.next() >> 11) + 1.0) * 0x1.0p-53;
+  };
+  const double radius = std::sqrt(-2.0 * std::log(open_unit()));
+  return radius * std::cos(2.0 * M_PI * open_unit());
+}
 
 // Rings are ordered by elevation, lowest beam first (ring 0 at the bottom), as
 // the ROS velodyne driver numbers them: a bag exported from the simulator reads
@@ -117,10 +107,10 @@ LidarModel LidarModel::vlp16() {
 BeamCalibration BeamCalibration::draw(const LidarModel& model, std::uint64_t seed) {
   BeamCalibration unit;
   if (model.elevation_error_sigma_deg <= 0.0 && model.range_offset_sigma <= 0.0) return unit;
-  SplitMix random(seed);
+  detail::Rng random(seed);
   for (std::size_t ring = 0; ring < model.elevations_deg.size(); ++ring) {
-    unit.elevation_error_deg.push_back(model.elevation_error_sigma_deg * random.gaussian());
-    unit.range_offset.push_back(model.range_offset_sigma * random.gaussian());
+    unit.elevation_error_deg.push_back(model.elevation_error_sigma_deg * gaussian(random));
+    unit.range_offset.push_back(model.range_offset_sigma * gaussian(random));
   }
   return unit;
 }
