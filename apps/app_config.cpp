@@ -51,6 +51,7 @@ robot::RobotConfig robotConfig(const AppConfig& c) {
   r.optimise_period = c.robot.optimise_period;
   r.round_timeout = c.robot.round_timeout;
   r.announce_period = c.robot.announce_period;
+  r.solve_alone = c.robot.solve_alone;
   return r;
 }
 

@@ -74,6 +74,7 @@ struct RobotSection {
   int candidate_spacing = 3;  ///< own keyframes between two candidates to one neighbour, at least
   double loop_sigma_translation = 0.02;  ///< m, added to every verified loop's covariance
   double loop_sigma_rotation = 0.0035;   ///< rad, likewise
+  bool solve_alone = true;  ///< with no one to optimise with, solve against the last round's values
 
   template <class Visitor>
   void visit(Visitor& v) {
@@ -91,6 +92,9 @@ struct RobotSection {
     v.field("loop_sigma_translation", loop_sigma_translation,
             "m, noise added to every verified loop (the registration's covariance is optimistic)");
     v.field("loop_sigma_rotation", loop_sigma_rotation, "rad, likewise");
+    v.field("solve_alone", solve_alone,
+            "with no one in range to optimise with, solve the own graph against the "
+            "neighbours' poses as the last round left them");
   }
 };
 

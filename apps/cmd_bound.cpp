@@ -206,10 +206,16 @@ std::vector<RobotBound> computeBound(const std::string& run, const std::string& 
   }
   backend::SolverConfig solver;
   solver.max_iterations = 200;
+  // From the run's estimates, and from the chordal initialisation: a run whose
+  // robots ended in frames of different rounds is a poor start, and
+  // Levenberg-Marquardt can settle in a local minimum from it. The lower cost wins.
   const auto solved = [&](Factors factors) {
     backend::PoseGraph g = jointGraph(robots, factors);
-    (void)backend::solveCentralized(g, solver);
-    return g;
+    backend::PoseGraph chordal = g;
+    const double from_run = backend::solveCentralized(g, solver).final_cost;
+    backend::SolverConfig from_scratch = solver;
+    from_scratch.initialisation = "chordal";
+    return backend::solveCentralized(chordal, from_scratch).final_cost < from_run ? chordal : g;
   };
   const backend::PoseGraph odometry = solved(Factors::odometry);
   const backend::PoseGraph own_loops = solved(Factors::own_loops);

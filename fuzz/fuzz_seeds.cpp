@@ -48,7 +48,12 @@ std::vector<comm::Body> bodies(const std::vector<std::uint8_t>& descriptor,
                              7,     true,
                              false, false,
                              0.05F, {{RobotId(0), 7, 5, false}, {RobotId(1), 6, -1, false}}};
-  comm::PoseEstimates poses{state, {{KeyframeId(5), T}}, false};
+  comm::PoseEstimates poses{state, {{KeyframeId(5), T}}, false, false};
+  comm::DgsState refine = state;
+  refine.stage = comm::OptimisationStage::refine;
+  Eigen::Isometry3d step = Eigen::Isometry3d::Identity();
+  step.translation() = Eigen::Vector3d(2e-5, -1e-6, 3e-6);
+  comm::PoseEstimates increments{refine, {{KeyframeId(5), step}, {KeyframeId(6), T}}, false, true};
   comm::RotationEstimates rotations{state, {{KeyframeId(5), T.rotation()}}};
   return {comm::Heartbeat{2.5, 40, {{RobotId(0), 1, 12, 3}}},
           comm::DescriptorMessage{KeyframeId(4), 3.0, descriptor,
@@ -59,6 +64,7 @@ std::vector<comm::Body> bodies(const std::vector<std::uint8_t>& descriptor,
           state,
           rotations,
           poses,
+          increments,
           comm::SummaryRequest{comm::SummaryKind::map},
           comm::TrajectorySummary{poses.poses},
           comm::MapSummary{12, cloud}};

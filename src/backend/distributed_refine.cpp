@@ -266,6 +266,10 @@ const PoseMap& RefineAgent::estimates() const {
   return impl_->estimates;
 }
 
+const PoseMap& RefineAgent::neighbourValues() const {
+  return impl_->neighbours_kept;
+}
+
 double RefineAgent::ownedCost() const {
   return impl_->ownedCost();
 }

@@ -26,8 +26,10 @@ constexpr std::size_t kCovarianceRecord = 42;
 
 constexpr double kQuaternionScale = 32767.0 * std::numbers::sqrt2;  // components within 1/sqrt(2)
 constexpr double kPreciseQuaternionScale = 2147483647.0 * std::numbers::sqrt2;
-constexpr double kRotationScale = 16384.0;  // relaxed entries within +/-2
-constexpr double kLogSigmaOffset = 32.0;    // sigma within 2^-32 .. 2^32
+constexpr double kRotationScale = 16384.0;          // relaxed entries within +/-2
+constexpr double kIncrementRotationScale = 1e8;     // 1e-8 rad
+constexpr double kIncrementTranslationScale = 1e6;  // 1e-6 m
+constexpr double kLogSigmaOffset = 32.0;            // sigma within 2^-32 .. 2^32
 constexpr double kLogSigmaScale = 1024.0;
 constexpr double kCorrelationScale = 32767.0;
 constexpr std::uint64_t kMaxKeyframe = core::PoseKey::kIndexMask;
@@ -353,11 +355,28 @@ void fill(wire::Envelope& e, const RotationEstimates& m) {
   }
 }
 
+/// Six varints per increment: rotation vector, translation (PoseEstimates::increments).
+void putIncrement(wire::PoseEstimates& w, const Eigen::Isometry3d& D) {
+  const Eigen::AngleAxisd aa(D.rotation());
+  const Eigen::Vector3d phi = aa.angle() * aa.axis();
+  const Eigen::Vector3d t = D.translation();
+  if (!phi.allFinite() || !t.allFinite() || t.cwiseAbs().maxCoeff() > kMaxIncrement)
+    throw core::Error("encode: a pose increment is not finite or beyond kMaxIncrement");
+  for (int i = 0; i < 3; ++i)
+    w.add_increments(static_cast<std::int32_t>(std::lround(phi[i] * kIncrementRotationScale)));
+  for (int i = 0; i < 3; ++i)
+    w.add_increments(static_cast<std::int32_t>(std::lround(t[i] * kIncrementTranslationScale)));
+}
+
 void fill(wire::Envelope& e, const PoseEstimates& m) {
   wire::PoseEstimates& w = *e.mutable_pose_estimates();
   fillState(*w.mutable_state(), m.state);
   for (const auto& [id, T] : m.poses) w.add_keyframes(keyframeOut(id));
-  if (m.precise) {
+  if (m.increments) {
+    if (m.precise) throw core::Error("encode: pose estimates both precise and increments");
+    if (m.poses.size() > kMaxEstimates) throw core::Error("encode: more than kMaxEstimates poses");
+    for (const auto& [id, D] : m.poses) putIncrement(w, D);
+  } else if (m.precise) {
     w.set_precise_poses(poseRecords(m.poses, true));
   } else {
     w.set_poses(poseRecords(m.poses));
@@ -493,8 +512,38 @@ RotationEstimates bodyIn(const wire::RotationEstimates& w) {
 PoseEstimates bodyIn(const wire::PoseEstimates& w) {
   PoseEstimates m;
   m.state = stateIn(w.state(), "pose estimates state");
-  check(w.poses().empty() || w.precise_poses().empty(),
-        "pose estimates: both pose and precise pose records");
+  check(static_cast<int>(!w.poses().empty()) + static_cast<int>(!w.precise_poses().empty()) +
+                static_cast<int>(!w.increments().empty()) <=
+            1,
+        "pose estimates: more than one of pose records, precise records and increments");
+  if (!w.increments().empty()) {
+    if (static_cast<std::size_t>(w.keyframes().size()) > kMaxEstimates)
+      invalid("pose estimates: more than " + std::to_string(kMaxEstimates) + " poses");
+    if (w.increments().size() != 6 * w.keyframes().size()) {
+      invalid("pose estimates: " + std::to_string(w.increments().size()) + " increments for " +
+              std::to_string(w.keyframes().size()) + " keyframes (six each)");
+    }
+    m.increments = true;
+    m.poses.reserve(static_cast<std::size_t>(w.keyframes().size()));
+    for (int k = 0; k < w.keyframes().size(); ++k) {
+      Eigen::Vector3d phi;
+      Eigen::Vector3d t;
+      for (int i = 0; i < 3; ++i) {
+        phi[i] = w.increments(6 * k + i) / kIncrementRotationScale;
+        t[i] = w.increments(6 * k + 3 + i) / kIncrementTranslationScale;
+      }
+      check(phi.norm() <= std::numbers::pi + 1e-6,
+            "pose estimates: an increment's rotation beyond pi");
+      check(t.cwiseAbs().maxCoeff() <= kMaxIncrement,
+            "pose estimates: an increment's translation beyond kMaxIncrement");
+      Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
+      const double angle = phi.norm();
+      if (angle > 0.0) D.linear() = Eigen::AngleAxisd(angle, phi / angle).toRotationMatrix();
+      D.translation() = t;
+      m.poses.emplace_back(keyframeIn(w.keyframes(k), "pose estimates"), D);
+    }
+    return m;
+  }
   m.precise = !w.precise_poses().empty();
   m.poses = m.precise ? posesIn(w.keyframes(), w.precise_poses(), "pose estimates", true)
                       : posesIn(w.keyframes(), w.poses(), "pose estimates");

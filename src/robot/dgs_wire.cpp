@@ -64,7 +64,7 @@ comm::Body toWire(const backend::DgsMessage& m) {
     return r;
   }
   if (!m.poses.empty()) {
-    comm::PoseEstimates p{stateOf(m), {}, false};
+    comm::PoseEstimates p{stateOf(m), {}, false, false};
     for (const auto& [key, T] : m.poses) p.poses.emplace_back(key.keyframe, T);
     return p;
   }
@@ -111,16 +111,15 @@ comm::Body toWire(const RefineMessage& m) {
     state.change = *m.cost_share;
     return state;
   }
-  comm::PoseEstimates p{state, {}, true};
+  comm::PoseEstimates p{state, {}, !m.increments, m.increments};
   for (const auto& [key, T] : m.poses) p.poses.emplace_back(key.keyframe, T);
   return p;
 }
 
 std::optional<RefineMessage> refineFromWire(const comm::Message& message) {
-  if (!message.header.receiver) return std::nullopt;  // refinement messages are addressed
   RefineMessage out;
   out.from = message.header.sender;
-  out.to = *message.header.receiver;
+  out.to = message.header.receiver;
   if (const auto* s = std::get_if<comm::DgsState>(&message.body)) {
     if (s->stage != OptimisationStage::refine) return std::nullopt;
     out.round = s->round;
@@ -129,9 +128,11 @@ std::optional<RefineMessage> refineFromWire(const comm::Message& message) {
     return out;
   }
   if (const auto* p = std::get_if<comm::PoseEstimates>(&message.body)) {
-    if (p->state.stage != OptimisationStage::refine) return std::nullopt;
+    // Separators are addressed: they are the receiver's loops' ends.
+    if (p->state.stage != OptimisationStage::refine || !out.to) return std::nullopt;
     out.round = p->state.round;
     out.step = p->state.iteration;
+    out.increments = p->increments;
     for (const auto& [id, T] : p->poses) out.poses[{out.from, id}] = T;
     return out;
   }

@@ -7,6 +7,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <dcl/backend/centralized_solver.hpp>
 #include <dcl/backend/pcm_trajectory.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/place/descriptor_codec.hpp>
@@ -106,6 +107,9 @@ struct Refinement {
   std::set<core::RobotId> linked;
   std::vector<RefineMessage> sent;  ///< this step's messages and the last step's share
   double last_sent = 0.0;
+  /// Per linked neighbour: the step of the last separators sent to it, and
+  /// their values as it decodes them (the base of the next step's increments).
+  std::map<core::RobotId, std::pair<std::uint32_t, PoseMap>> told;
 };
 
 /// `body` (a DGS message) with every member of `group` in its progress (a
@@ -152,6 +156,10 @@ struct Round {
   /// already refining while DGS still runs here).
   std::map<std::uint32_t, std::map<core::RobotId, PoseMap>> values;
   std::map<std::uint32_t, std::map<core::RobotId, float>> shares;
+  std::size_t own_loops = 0;  ///< the own intra-robot loops when it began
+  /// Per member: the step of the last refinement values taken in from it, and
+  /// those values (the base its next step's increments apply to).
+  std::map<core::RobotId, std::pair<std::uint32_t, PoseMap>> decoded;
 };
 
 std::uint8_t initiator(std::uint32_t round) {
@@ -200,6 +208,14 @@ struct RobotNode::Impl {
   /// The cost share of the step at which each recent round's refinement ended:
   /// a member whose copy was lost still waits for it, and asks by sending its own.
   std::map<std::uint32_t, RefineMessage> final_shares;
+  /// The neighbours' separator poses where the rounds in `frame` left them,
+  /// and the inter-robot loops of those rounds: what holds this robot to its
+  /// neighbours when it solves alone.
+  PoseMap anchors;
+  std::set<backend::LoopId> anchored_loops;
+  /// The own intra-robot loops when the estimates were last solved.
+  std::size_t solved_own_loops = 0;
+  double last_solved_alone = kNever;
 
   Impl(comm::Transport& transport, const RobotConfig& c, std::uint32_t incarnation)
       : self(transport.self()),
@@ -275,6 +291,7 @@ struct RobotNode::Impl {
     announce();
     maybeStartRound();
     stepRound();
+    maybeSolveAlone();
   }
 
   void handle(const Message& m) {
@@ -537,6 +554,8 @@ struct RobotNode::Impl {
                         now,
                         std::nullopt,
                         {},
+                        {},
+                        mapper.loops().size(),
                         {}});
     round->agent.startRound(members, number);
     last_signature = signature(members);
@@ -632,11 +651,74 @@ struct RobotNode::Impl {
   void finishRound(const PoseMap& estimates, bool capped = false) {
     for (const auto& [key, T] : estimates)
       if (key.robot == self) optimised[key.keyframe] = T;
+    if (!round->origin.frame || round->origin.frame != frame) {
+      anchors.clear();
+      anchored_loops.clear();
+    }
+    if (round->origin.frame && round->refine) {
+      for (const auto& [key, T] : round->refine->agent.neighbourValues()) anchors[key] = T;
+      for (const backend::Factor& f : round->graph.factors())
+        if (f.from.robot != f.to.robot) anchored_loops.insert(backend::loopId(f));
+    }
+    solved_own_loops = round->own_loops;
     frame = round->origin.frame;
     last_round_capped = capped;
     finished.insert(round->number);
     round.reset();
     count("dgs_rounds");
+  }
+
+  // ---- alone ------------------------------------------------------------------
+
+  /// Own loops closed since the estimates were last solved, and no one in
+  /// range to optimise with: the own graph is solved with the inter-robot
+  /// loops of the rounds in the current frame, the neighbours' poses held
+  /// where those rounds left them (one block step of the refinement, to
+  /// convergence). Inter-robot loops no round has held yet wait for one: both
+  /// robots would take each in full against the other's old poses, and
+  /// together overshoot. A robot that never shared a round has nothing to
+  /// solve: its own loops are already in its local graph's estimates.
+  void maybeSolveAlone() {
+    if (!config.solve_alone || round || anchors.empty()) return;
+    if (mapper.loops().size() == solved_own_loops) return;
+    if (now - std::max(last_solved_alone, last_round_start) < config.optimise_period) return;
+    if (group().size() > 1) return;  // the group's round takes the loops in
+    last_solved_alone = now;
+    solved_own_loops = mapper.loops().size();
+    backend::PoseGraph g;
+    for (const core::Keyframe& k : mapper.keyframes()) g.addNode({self, k.id}, estimate(k.id));
+    for (const backend::Factor& f : mapper.graph().factors()) g.addFactor(f);
+    std::size_t held = 0;
+    for (const auto& [robot, n] : neighbours) {
+      for (const auto& [id, f] : n.loops) {
+        const core::PoseKey& other = f.from.robot == self ? f.to : f.from;
+        const auto anchor = anchors.find(other);
+        if (!n.accepted.contains(id) || !anchored_loops.contains(id) || anchor == anchors.end())
+          continue;
+        if (!g.hasNode(other)) {
+          g.addNode(other, anchor->second);
+          g.fix(other);
+        }
+        g.addFactor(f);
+        ++held;
+      }
+    }
+    if (held == 0) return;
+    backend::SolverConfig solver;
+    solver.threads = 1;
+    solver.fix_lowest = false;
+    try {
+      const backend::SolverSummary summary = backend::solveCentralized(g, solver);
+      spdlog::debug(
+          "robot {}: t {:.1f}: solved alone on {} loops to neighbours: cost {:.6g} -> {:.6g}",
+          core::robotName(self), now, held, summary.initial_cost, summary.final_cost);
+    } catch (const core::Error& e) {
+      spdlog::warn("robot {}: solving alone failed: {}", core::robotName(self), e.what());
+      return count("solved_alone_failed");
+    }
+    for (const auto& [key, T] : g.nodes())
+      if (key.robot == self) optimised[key.keyframe] = T;
+    count("solved_alone");
   }
 
   // ---- the refinement within a round ----------------------------------------
@@ -673,13 +755,15 @@ struct RobotNode::Impl {
                                      {},
                                      {},
                                      {},
-                                     now});
+                                     now,
+                                     {}});
     sendValues();
   }
 
   void onRefine(const RefineMessage& m) {
     if (finished.contains(m.round)) return answerLateMember(m);
     if (!round || m.round != round->number || !round->group.contains(m.from)) {
+      if (!m.to) return;  // a share broadcast in a round this robot is not in
       spdlog::debug(
           "robot {}: t {:.2f}: ignores refinement step {} of round {} from {} (in round {})",
           core::robotName(self), now, m.step, m.round, core::robotName(m.from),
@@ -692,7 +776,22 @@ struct RobotNode::Impl {
       if (std::isfinite(*m.cost_share)) round->shares[m.step][m.from] = *m.cost_share;
       return;
     }
-    round->values[m.step][m.from] = m.poses;
+    auto& [step, values] = round->decoded[m.from];
+    if (!values.empty() && m.step <= step) return;  // a copy of values already taken in
+    if (!m.increments) {
+      values = m.poses;
+    } else {
+      // Increments apply to the sender's previous step, which the sender only
+      // sends on from once this robot has shared the step it was for.
+      if (values.empty() || m.step != step + 1) return count("refine_increments_without_base");
+      for (const auto& [key, D] : m.poses) {
+        const auto base = values.find(key);
+        if (base == values.end()) return count("refine_increments_without_base");
+        base->second = base->second * D;
+      }
+    }
+    step = m.step;
+    round->values[m.step][m.from] = values;
   }
 
   /// A member still at the step at which this robot's refinement of a finished
@@ -733,16 +832,32 @@ struct RobotNode::Impl {
 
   /// This step's separators to every linked neighbour; in step 0, DGS's
   /// estimates to every member (none for a member without a loop here).
+  /// After step 0 they go as increments from what the neighbour holds from
+  /// the step before, which it has: it shared that step only once it had
+  /// them. The neighbour's copy is tracked as it decodes it, so the
+  /// increments' rounding never adds up.
   void sendValues() {
     Refinement& r = *round->refine;
     const std::map<core::RobotId, std::set<core::PoseKey>>& separators = r.agent.separators();
     for (const core::RobotId member : round->group) {
       if (member == self || (r.step > 0 && !r.linked.contains(member))) continue;
-      RefineMessage m{self, member, round->number, r.step, {}, std::nullopt};
+      RefineMessage m{self, member, round->number, r.step, {}, std::nullopt, false};
       if (const auto it = separators.find(member); it != separators.end()) {
         for (const core::PoseKey& key : it->second)
           m.poses.emplace(key, r.agent.estimates().at(key));
       }
+      auto& [told_step, told] = r.told[member];
+      const bool incremental = r.step > 0 && told_step + 1 == r.step && !m.poses.empty() &&
+                               std::all_of(m.poses.begin(), m.poses.end(),
+                                           [&](const auto& p) { return told.contains(p.first); });
+      if (incremental) {
+        for (auto& [key, T] : m.poses) T = told.at(key).inverse() * T;
+        m.increments = true;
+      }
+      const RefineMessage delivered = *refineFromWire(
+          {{comm::kSchemaVersion, self, member, 1, 1}, comm::asDelivered(toWire(m))});
+      for (const auto& [key, T] : delivered.poses) told[key] = incremental ? told[key] * T : T;
+      told_step = r.step;
       send(std::move(m));
     }
   }
@@ -794,8 +909,7 @@ struct RobotNode::Impl {
         }
         const auto share = static_cast<float>(r.agent.ownedCost());
         round->shares[r.step][self] = share;
-        for (const core::RobotId member : round->group)
-          if (member != self) send({self, member, round->number, r.step, {}, share});
+        send({self, std::nullopt, round->number, r.step, {}, share});
         r.shared = true;
       }
       const std::map<core::RobotId, float>& shares = round->shares[r.step];
@@ -918,7 +1032,10 @@ bool RobotNode::settled() const {
   const Impl& i = *impl_;
   if (i.round || i.last_round_capped) return false;
   const std::set<core::RobotId> members = i.group();
-  return members.size() < 2 || i.signature(members) == i.last_signature;
+  if (members.size() < 2)
+    return !i.config.solve_alone || i.anchors.empty() ||
+           i.mapper.loops().size() == i.solved_own_loops;
+  return i.signature(members) == i.last_signature;
 }
 
 const std::map<std::string, double>& RobotNode::counters() const {

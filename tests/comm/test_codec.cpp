@@ -224,6 +224,42 @@ TEST(Codec, PreciseSeparatorPosesKeepRotationsHundredsOfTimesFiner) {
               coarse_worst);
 }
 
+TEST(Codec, PoseIncrementsKeepMicrometresInAFewBytes) {
+  // A refinement step moves separators by micrometres: increments from the
+  // last values cost a few bytes each, to 1e-8 rad and 1e-6 m; larger steps
+  // (here one KITTI frame to the next, a metre) cost more, as precisely.
+  const auto& gt = test::kittiLidarPoses();
+  for (const double scale : {1e-4, 1.0}) {
+    PoseEstimates m;
+    m.increments = true;
+    m.state.stage = OptimisationStage::refine;
+    for (std::size_t i = 0; i < 100; ++i) {
+      const Eigen::Isometry3d step = gt[i].inverse() * gt[i + 1];
+      const Eigen::AngleAxisd aa(step.rotation());
+      Eigen::Isometry3d D = Eigen::Isometry3d::Identity();
+      D.linear() = Eigen::AngleAxisd(scale * aa.angle(), aa.axis()).toRotationMatrix();
+      D.translation() = scale * step.translation();
+      m.poses.emplace_back(keyframe(7 * i), D);
+    }
+    std::size_t bytes = 0;
+    const PoseEstimates got = roundTrip(header(2, 0), m, &bytes);
+    EXPECT_TRUE(got.increments);
+    EXPECT_FALSE(got.precise);
+    ASSERT_EQ(got.poses.size(), m.poses.size());
+    for (std::size_t i = 0; i < m.poses.size(); ++i) {
+      EXPECT_LT(rotationError(got.poses[i].second, m.poses[i].second), 1e-8);
+      EXPECT_LT((got.poses[i].second.translation() - m.poses[i].second.translation()).norm(), 1e-6);
+    }
+    const double per_pose = static_cast<double>(bytes) / 100.0;
+    EXPECT_LT(per_pose, scale < 1.0 ? 12.0 : 22.0) << "scale " << scale;
+    std::printf("increments of %g of a KITTI frame step: %.1f B a pose\n", scale, per_pose);
+  }
+  PoseEstimates both;
+  both.increments = both.precise = true;
+  both.poses.emplace_back(keyframe(1), Eigen::Isometry3d::Identity());
+  EXPECT_THROW((void)encode({header(2, 0), both}), core::Error);
+}
+
 TEST(Codec, RelaxedRotationsKeepFourDecimals) {
   std::mt19937_64 rng(7);
   std::normal_distribution<double> noise(0.0, 0.05);
@@ -250,10 +286,16 @@ TEST(Codec, RelaxedRotationsKeepFourDecimals) {
 }
 
 TEST(Codec, StateSummariesAndHeartbeatsRoundTrip) {
-  DgsState s{7,      OptimisationStage::rotation,
-             12,     true,
-             false,  true,
-             0.037F, {{robot(0), 12, 9, false}, {robot(4), 11, -1, true}}};
+  DgsState s{7,
+             OptimisationStage::rotation,
+             12,
+             true,
+             false,
+             true,
+             0.037F,
+             {{robot(0), 12, 9, false}, {robot(4), 11, -1, true}},
+             std::nullopt,
+             false};
   const DgsState gs = roundTrip(header(4, std::nullopt), s);
   EXPECT_EQ(gs.round, 7u);
   EXPECT_EQ(gs.stage, OptimisationStage::rotation);
@@ -376,6 +418,55 @@ TEST(Codec, OversizedGarbageAndEmptyBodiesAreDropped) {
   EXPECT_NE(d.detail.find("no body"), std::string::npos);
 }
 
+/// A pose-estimates body written by hand: keyframes 1.. and `increments` as
+/// raw zigzag varints (field 5, packed).
+Decoded incrementsBody(std::size_t keyframes, const std::vector<std::uint64_t>& zigzags) {
+  std::vector<std::uint8_t> body;
+  const auto packed = [&body](int field, const std::vector<std::uint64_t>& values) {
+    std::vector<std::uint8_t> payload;
+    for (std::uint64_t v : values) {
+      do {
+        std::uint8_t byte = v & 0x7FU;
+        v >>= 7;
+        if (v != 0) byte |= 0x80;
+        payload.push_back(byte);
+      } while (v != 0);
+    }
+    body.push_back(static_cast<std::uint8_t>(field << 3 | 2));
+    body.push_back(static_cast<std::uint8_t>(payload.size()));  // < 128 here
+    body.insert(body.end(), payload.begin(), payload.end());
+  };
+  std::vector<std::uint64_t> ids;
+  for (std::size_t k = 1; k <= keyframes; ++k) ids.push_back(k);
+  packed(2, ids);
+  packed(5, zigzags);
+  std::vector<std::uint8_t> bytes;
+  varintField(bytes, 1, kSchemaVersion);
+  varintField(bytes, 2, 1);
+  varintField(bytes, 4, 1);
+  varintField(bytes, 5, 1);
+  bytes.push_back(16 << 3 | 2);
+  bytes.push_back(1);  // the field number needs two bytes of key: 16 << 3 | 2 = 130
+  bytes.push_back(static_cast<std::uint8_t>(body.size()));
+  bytes.insert(bytes.end(), body.begin(), body.end());
+  return decode(bytes);
+}
+
+TEST(Codec, PoseIncrementsOutOfRangeAreDroppedByName) {
+  EXPECT_TRUE(incrementsBody(1, {2, 1, 4, 3, 0, 6}).message) << incrementsBody(1, {}).detail;
+  const Decoded short_of_six = incrementsBody(2, {2, 1, 4, 3, 0, 6, 1});
+  EXPECT_EQ(short_of_six.reason, DropReason::invalid_field);
+  EXPECT_NE(short_of_six.detail.find("six each"), std::string::npos) << short_of_six.detail;
+  // 4 rad about x (zigzag 8e8): beyond pi.
+  const Decoded turned = incrementsBody(1, {800'000'000, 0, 0, 0, 0, 0});
+  EXPECT_EQ(turned.reason, DropReason::invalid_field);
+  EXPECT_NE(turned.detail.find("beyond pi"), std::string::npos) << turned.detail;
+  // 2100 m along y (zigzag 4.2e9, beyond an int32's 4294967295 / 2): not a sint32.
+  const Decoded far = incrementsBody(1, {0, 0, 0, 0, 4'200'000'000, 0});
+  EXPECT_EQ(far.reason, DropReason::invalid_field);
+  EXPECT_NE(far.detail.find("beyond kMaxIncrement"), std::string::npos) << far.detail;
+}
+
 /// Every message kind with realistic content.
 std::vector<Message> samples() {
   const registration::VerificationResult& v = realVerification();
@@ -385,8 +476,16 @@ std::vector<Message> samples() {
   loop.T_match_query = v.T_candidate_query;
   loop.covariance = v.covariance;
   PoseEstimates poses;
-  poses.state = {3,     OptimisationStage::pose,   8, true, false, false,
-                 0.01F, {{robot(1), 8, -1, false}}};
+  poses.state = {3,
+                 OptimisationStage::pose,
+                 8,
+                 true,
+                 false,
+                 false,
+                 0.01F,
+                 {{robot(1), 8, -1, false}},
+                 std::nullopt,
+                 false};
   RotationEstimates rotations;
   rotations.state.stage = OptimisationStage::rotation;
   for (std::uint64_t i = 0; i < 6; ++i) {
@@ -403,8 +502,16 @@ std::vector<Message> samples() {
        DescriptorMessage{keyframe(3), 4.5, {9, 8, 7, 6, 5}, std::nullopt}},
       {header(0, 1, 3), LoopCandidate{keyframe(3), keyframe(7), 0.5F, 0.2F, small_cloud}},
       {header(1, 0, 4), loop},
-      {header(1, 0, 5),
-       DgsState{2, OptimisationStage::pose, 4, true, true, false, 0.5F, {{robot(0), 4, 2, false}}}},
+      {header(1, 0, 5), DgsState{2,
+                                 OptimisationStage::pose,
+                                 4,
+                                 true,
+                                 true,
+                                 false,
+                                 0.5F,
+                                 {{robot(0), 4, 2, false}},
+                                 std::nullopt,
+                                 false}},
       {header(1, 0, 6), rotations},
       {header(1, 0, 7), poses},
       {header(1, 0, 8), SummaryRequest{SummaryKind::trajectory}},

@@ -24,17 +24,33 @@ inline sim::Route sliceRoute(const sim::Route& route, std::size_t first, std::si
   return out;
 }
 
+/// `sliceRoute`, then the same frames backwards: the robot reverses down the
+/// street to where it began, past every place it saw.
+inline sim::Route thereAndBack(const sim::Route& route, std::size_t first, std::size_t count,
+                               const std::string& name) {
+  sim::Route out = sliceRoute(route, first, count, name);
+  const double step = out.T_world_sensor.stamp(1) - out.T_world_sensor.stamp(0);
+  for (std::size_t i = count - 1; i-- > 0;) {
+    out.T_world_sensor.push_back(out.T_world_sensor.stamps().back() + step,
+                                 route.T_world_sensor.pose(first + i));
+  }
+  return out;
+}
+
 /// The dataset, written to a temporary folder for the life of the object.
+/// `back`: both robots reverse down the street after `frames` frames, back to
+/// where they began.
 struct Convoy {
   std::filesystem::path folder;
   io::DatasetSpec spec;
 
-  explicit Convoy(const std::string& tag) {
+  explicit Convoy(const std::string& tag, std::size_t frames = 160, bool back = false) {
     folder = std::filesystem::temp_directory_path() /
              ("dcl_convoy_" + tag + "_" + std::to_string(::getpid()));
     sim::Preset preset = sim::makePreset("demo");
     const sim::Route street = preset.routes.at(0);
-    preset.routes = {sliceRoute(street, 40, 160, "a"), sliceRoute(street, 0, 160, "b")};
+    const auto route = back ? thereAndBack : sliceRoute;
+    preset.routes = {route(street, 40, frames, "a"), route(street, 0, frames, "b")};
     spec = sim::writeSimDataset(folder.string(), preset);
   }
   ~Convoy() { std::filesystem::remove_all(folder); }

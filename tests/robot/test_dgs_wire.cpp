@@ -111,5 +111,42 @@ INSTANTIATE_TEST_SUITE_P(Graphs, DgsOverTheWire,
                          ::testing::Values(std::pair{"smallGrid3D.g2o", 4},
                                            std::pair{"sphere2500.g2o", 4}));
 
+/// `m` sent with header receiver `receiver`, through encode and decode.
+std::optional<RefineMessage> refineOverTheWire(const RefineMessage& m,
+                                               std::optional<core::RobotId> receiver) {
+  comm::Header h;
+  h.sender = m.from;
+  h.receiver = receiver;
+  h.incarnation = 1;
+  h.sequence = 1;
+  const comm::Decoded d = comm::decode(comm::encode({h, robot::toWire(m)}));
+  EXPECT_TRUE(d.message) << d.detail;
+  return d.message ? refineFromWire(*d.message) : std::nullopt;
+}
+
+TEST(RefineOverTheWire, SharesAreBroadcastAndSeparatorsAddressed) {
+  const core::RobotId a(0), b(1);
+  // A cost share goes out once to every member in range.
+  const std::optional<RefineMessage> share =
+      refineOverTheWire({a, std::nullopt, 258, 17, {}, 0.25F}, std::nullopt);
+  ASSERT_TRUE(share);
+  EXPECT_FALSE(share->to);
+  EXPECT_EQ(share->from, a);
+  EXPECT_EQ(share->round, 258U);
+  EXPECT_EQ(share->step, 17U);
+  ASSERT_TRUE(share->cost_share);
+  EXPECT_EQ(*share->cost_share, 0.25F);
+  // Separators are for the member whose loops they end.
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.translation() = Eigen::Vector3d(1.0, -2.0, 0.5);
+  const RefineMessage poses{a, b, 258, 17, {{{a, core::KeyframeId(4)}, T}}, std::nullopt};
+  const std::optional<RefineMessage> addressed = refineOverTheWire(poses, b);
+  ASSERT_TRUE(addressed);
+  EXPECT_EQ(addressed->to, b);
+  ASSERT_EQ(addressed->poses.size(), 1U);
+  EXPECT_TRUE(addressed->poses.begin()->second.isApprox(T, 1e-6));
+  EXPECT_FALSE(refineOverTheWire(poses, std::nullopt)) << "separators broadcast";
+}
+
 }  // namespace
 }  // namespace dcl::robot

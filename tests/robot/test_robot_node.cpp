@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <memory>
 #include <set>
@@ -36,9 +37,11 @@ struct SwarmRun {
 };
 
 /// Plays the convoy's scans, then `drain` s more of ticks for the rounds to
-/// end, and on while a robot has not settled (60 s at most), as a swarm run does.
+/// end, and on while a robot has not settled (60 s at most), as a swarm run
+/// does. From frame `part` on the robots are far out of each other's range.
 SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_config = {},
-               double drain = 10.0, const RobotConfig& config = {}) {
+               double drain = 10.0, const RobotConfig& config = {},
+               std::size_t part = std::numeric_limits<std::size_t>::max()) {
   if (std::getenv("DCL_TEST_DEBUG")) spdlog::set_level(spdlog::level::debug);
   SwarmRun run;
   run.radio = std::make_unique<comm::SimRadio>(radio_config);
@@ -61,7 +64,8 @@ SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_con
     t = stamp;
     for (std::size_t r = 0; r < scans.size(); ++r) {  // links follow the true positions
       const core::RobotId id(static_cast<std::uint8_t>(r));
-      run.radio->setPosition(id, run.ground_truth[r].pose(i).translation());
+      run.radio->setPosition(id, i < part ? run.ground_truth[r].pose(i).translation()
+                                          : Eigen::Vector3d(1e4 * static_cast<double>(r), 0, 0));
     }
     run.radio->advanceTo(t);
     for (std::size_t r = 0; r < scans.size(); ++r) {
@@ -263,6 +267,37 @@ TEST(RobotNode, WarmRoundsCarryOnARefinementThatRanOutOfSteps) {
   EXPECT_EQ(run.nodes[0]->counters().at("refine_warm_starts"),
             run.nodes[1]->counters().at("refine_warm_starts"));
   EXPECT_LT(costOverOptimum(run), 1.001);
+}
+
+TEST(RobotNode, RobotsThatPartSolveAloneWithTheirOwnLaterLoops) {
+  // The robots drive the street together, then part and reverse down it
+  // alone, each closing loops with its own keyframes of the way out, which
+  // its last round placed. Each solves its own graph with them, the
+  // inter-robot loops of its rounds holding it to the other's poses where
+  // those rounds left them; kept as they were, the robots' estimates would
+  // take those loops in only at their newest keyframes.
+  static const test::Convoy back("back", 140, true);
+  RobotConfig alone;
+  // Keyframes 8 s old may close loops (30 s by default: longer than this street).
+  alone.mapper.loops.exclude_seconds = 8.0;
+  alone.mapper.loops.exclude_recent = 20;
+  RobotConfig kept = alone;
+  kept.solve_alone = false;
+  const SwarmRun solved = drive(back, {}, 10.0, alone, 140);
+  const SwarmRun stale = drive(back, {}, 10.0, kept, 140);
+  for (const auto& node : solved.nodes) {
+    EXPECT_TRUE(node->settled()) << core::robotName(node->id());
+    const auto& c = node->counters();
+    for (const char* name : {"intra_loops", "solved_alone", "dgs_rounds"})
+      EXPECT_GT(c.contains(name) ? c.at(name) : 0.0, 0.0) << core::robotName(node->id()) << name;
+  }
+  for (const auto& node : stale.nodes) EXPECT_FALSE(node->counters().contains("solved_alone"));
+  const double with = costOverOptimum(solved);
+  const double without = costOverOptimum(stale);
+  // Not the optimum: each holds the other where they parted, and the
+  // inter-robot loops found after the last round wait for a round.
+  EXPECT_LT(with, 0.2 * without);
+  EXPECT_LT(with, 1.25);
 }
 
 class RobotNodeLossy : public ::testing::TestWithParam<unsigned> {};

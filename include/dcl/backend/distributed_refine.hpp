@@ -142,6 +142,8 @@ class RefineAgent {
 
   /// Current estimates T_world_node of the own nodes (this round's after step()).
   [[nodiscard]] const std::map<core::PoseKey, Eigen::Isometry3d>& estimates() const;
+  /// The neighbours' separator poses as of the last kept round.
+  [[nodiscard]] const std::map<core::PoseKey, Eigen::Isometry3d>& neighbourValues() const;
 
   /// This robot's share of the graph's cost: the chi-square of the factors it
   /// owns (both ends its own, or an inter-robot factor whose other robot has a

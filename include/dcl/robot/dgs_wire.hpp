@@ -34,14 +34,19 @@ RoundOrigin roundOrigin(const comm::Message& message);
 /// step 0: where its refinement starts from) or the sender's share of the graph's cost
 /// (RefineAgent::ownedCost) at the end of that step. On the wire: a
 /// comm::PoseEstimates, or a comm::DgsState carrying the share in `change`,
-/// both with stage `refine`.
+/// both with stage `refine`. Poses go to one member; a share is broadcast
+/// (every member needs it, and one transmission reaches them all), or sent
+/// again to one member that lost it.
 struct RefineMessage {
   core::RobotId from;
-  core::RobotId to;
+  std::optional<core::RobotId> to;  ///< none: every robot in range (a share)
   std::uint32_t round = 0;
   std::uint32_t step = 0;
   std::map<core::PoseKey, Eigen::Isometry3d> poses;  ///< the sender's own poses
   std::optional<float> cost_share;                   ///< set: a share, not poses
+  /// `poses` are increments T_last^-1 T from the poses of the sender's
+  /// previous step (comm::PoseEstimates::increments).
+  bool increments = false;
 };
 
 comm::Body toWire(const RefineMessage& message);

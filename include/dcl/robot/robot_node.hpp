@@ -119,6 +119,13 @@ struct RobotConfig {
   double round_timeout = 30.0;
   /// s between announcements of this robot's loop neighbours (how groups form).
   double announce_period = 2.0;
+  /// A robot with no one in range to optimise with, whose loops changed since
+  /// its estimates were last solved, solves its own graph (odometry, its own
+  /// loops, and the accepted loops to the neighbours of its last round, their
+  /// poses held where that round left them) at most once an optimise_period.
+  /// Without it, loops closed after a robot's last round never reach the
+  /// keyframes that round placed.
+  bool solve_alone = true;
 };
 
 /// An inter-robot loop this robot knows of, and what became of it.
