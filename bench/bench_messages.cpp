@@ -94,7 +94,7 @@ const std::vector<Sample>& samples() {
                                 verification.T_candidate_query, verification.covariance}}},
         {{header(RobotId(2)), state}},
         {{header(RobotId(2)), rotations}, poses.size()},
-        {{header(RobotId(2)), comm::PoseEstimates{state, poses, false}}, poses.size()},
+        {{header(RobotId(2)), comm::PoseEstimates{state, poses, false, false}}, poses.size()},
         {{header(RobotId(2)), comm::SummaryRequest{comm::SummaryKind::trajectory}}},
         {{header(RobotId(2)), comm::TrajectorySummary{separatorPoses(1000)}}, 1000},
         {{header(RobotId(2)), comm::MapSummary{1, map}}},

@@ -608,6 +608,7 @@ struct RobotNode::Impl {
       // DGS's estimate and every kept refinement step are consistent in the
       // group: keep the last kept one rather than nothing.
       count(whole ? "refine_timeouts" : "refine_cut_short");
+      round->refine->agent.endRound(false);  // a step the group has not judged is not kept
       return finishRound(round->refine->agent.estimates());
     }
     if (!whole || late) return leave("dgs_rounds_abandoned");
@@ -909,7 +910,7 @@ struct RobotNode::Impl {
         }
         const auto share = static_cast<float>(r.agent.ownedCost());
         round->shares[r.step][self] = share;
-        send({self, std::nullopt, round->number, r.step, {}, share});
+        send({self, std::nullopt, round->number, r.step, {}, share, false});
         r.shared = true;
       }
       const std::map<core::RobotId, float>& shares = round->shares[r.step];
@@ -925,7 +926,8 @@ struct RobotNode::Impl {
         r.agent.endRound(r.schedule->endRound(total));
       }
       if (r.schedule->done()) {
-        final_shares[round->number] = {self, self, round->number, r.step, {}, shares.at(self)};
+        final_shares[round->number] = {self, self, round->number, r.step, {}, shares.at(self),
+                                       false};
         while (final_shares.size() > kFinalSharesKept) final_shares.erase(final_shares.begin());
         count("refine_steps", r.schedule->rounds());
         count("refine_restarts", r.schedule->restarts());
