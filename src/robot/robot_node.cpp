@@ -855,9 +855,11 @@ struct RobotNode::Impl {
         for (auto& [key, T] : m.poses) T = told.at(key).inverse() * T;
         m.increments = true;
       }
-      const RefineMessage delivered = *refineFromWire(
-          {{comm::kSchemaVersion, self, member, 1, 1}, comm::asDelivered(toWire(m))});
-      for (const auto& [key, T] : delivered.poses) told[key] = incremental ? told[key] * T : T;
+      const auto delivered = std::get<comm::PoseEstimates>(comm::asDelivered(toWire(m)));
+      for (const auto& [id, T] : delivered.poses) {
+        Eigen::Isometry3d& held = told[{self, id}];
+        held = incremental ? held * T : T;
+      }
       told_step = r.step;
       send(std::move(m));
     }

@@ -368,17 +368,20 @@ TEST(Codec, EncodeRefusesWhatCannotGoOnTheWire) {
 
 // ---------------------------------------------------------------- hostile input
 
+/// A protobuf varint written by hand.
+void varint(std::vector<std::uint8_t>& out, std::uint64_t v) {
+  do {
+    std::uint8_t byte = v & 0x7F;
+    v >>= 7;
+    if (v != 0) byte |= 0x80;
+    out.push_back(byte);
+  } while (v != 0);
+}
+
 /// A protobuf field written by hand: tag and varint value.
 void varintField(std::vector<std::uint8_t>& out, int field, std::uint64_t value) {
-  std::uint64_t key = static_cast<std::uint64_t>(field) << 3;
-  for (std::uint64_t v : {key, value}) {
-    do {
-      std::uint8_t byte = v & 0x7F;
-      v >>= 7;
-      if (v != 0) byte |= 0x80;
-      out.push_back(byte);
-    } while (v != 0);
-  }
+  varint(out, static_cast<std::uint64_t>(field) << 3);
+  varint(out, value);
 }
 
 /// A valid request, then `field` = `value` appended (protobuf: the last value wins).
@@ -424,16 +427,9 @@ Decoded incrementsBody(std::size_t keyframes, const std::vector<std::uint64_t>& 
   std::vector<std::uint8_t> body;
   const auto packed = [&body](int field, const std::vector<std::uint64_t>& values) {
     std::vector<std::uint8_t> payload;
-    for (std::uint64_t v : values) {
-      do {
-        std::uint8_t byte = v & 0x7FU;
-        v >>= 7;
-        if (v != 0) byte |= 0x80;
-        payload.push_back(byte);
-      } while (v != 0);
-    }
-    body.push_back(static_cast<std::uint8_t>(field << 3 | 2));
-    body.push_back(static_cast<std::uint8_t>(payload.size()));  // < 128 here
+    for (const std::uint64_t v : values) varint(payload, v);
+    varint(body, static_cast<std::uint64_t>(field) << 3 | 2);
+    varint(body, payload.size());
     body.insert(body.end(), payload.begin(), payload.end());
   };
   std::vector<std::uint64_t> ids;
@@ -445,9 +441,8 @@ Decoded incrementsBody(std::size_t keyframes, const std::vector<std::uint64_t>& 
   varintField(bytes, 2, 1);
   varintField(bytes, 4, 1);
   varintField(bytes, 5, 1);
-  bytes.push_back(16 << 3 | 2);
-  bytes.push_back(1);  // the field number needs two bytes of key: 16 << 3 | 2 = 130
-  bytes.push_back(static_cast<std::uint8_t>(body.size()));
+  varint(bytes, 16 << 3 | 2);  // the envelope's pose_estimates, length-delimited
+  varint(bytes, body.size());
   bytes.insert(bytes.end(), body.begin(), body.end());
   return decode(bytes);
 }
