@@ -848,9 +848,16 @@ struct RobotNode::Impl {
           m.poses.emplace(key, r.agent.estimates().at(key));
       }
       auto& [told_step, told] = r.told[member];
+      // In full when the neighbour holds no base, or (no realistic step) one
+      // moved further than an increment can say.
+      const auto within = [&](const auto& p) {
+        const auto base = told.find(p.first);
+        return base != told.end() &&
+               (base->second.translation() - p.second.translation()).cwiseAbs().maxCoeff() <
+                   0.5 * comm::kMaxIncrement;
+      };
       const bool incremental = r.step > 0 && told_step + 1 == r.step && !m.poses.empty() &&
-                               std::all_of(m.poses.begin(), m.poses.end(),
-                                           [&](const auto& p) { return told.contains(p.first); });
+                               std::all_of(m.poses.begin(), m.poses.end(), within);
       if (incremental) {
         for (auto& [key, T] : m.poses) T = told.at(key).inverse() * T;
         m.increments = true;
