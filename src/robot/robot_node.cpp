@@ -522,12 +522,19 @@ struct RobotNode::Impl {
     join(((++rounds_started) << 8U) | self.value(), members, {frame, again});
   }
 
-  /// The own part of the graph a round optimises: own poses at their latest
-  /// estimates, own factors, and the accepted loops to the group's members.
-  [[nodiscard]] backend::PoseGraph roundGraph(const std::set<core::RobotId>& members) const {
+  /// The own keyframes at their latest estimates, with the own factors
+  /// (odometry and intra-robot loops).
+  [[nodiscard]] backend::PoseGraph ownGraph() const {
     backend::PoseGraph g;
     for (const core::Keyframe& k : mapper.keyframes()) g.addNode({self, k.id}, estimate(k.id));
     for (const backend::Factor& f : mapper.graph().factors()) g.addFactor(f);
+    return g;
+  }
+
+  /// The own part of the graph a round optimises: own poses at their latest
+  /// estimates, own factors, and the accepted loops to the group's members.
+  [[nodiscard]] backend::PoseGraph roundGraph(const std::set<core::RobotId>& members) const {
+    backend::PoseGraph g = ownGraph();
     for (const auto& [robot, n] : neighbours) {
       if (!members.contains(robot)) continue;
       for (const auto& [id, f] : n.loops) {
@@ -674,11 +681,11 @@ struct RobotNode::Impl {
   /// Own loops closed since the estimates were last solved, and no one in
   /// range to optimise with: the own graph is solved with the inter-robot
   /// loops of the rounds in the current frame, the neighbours' poses held
-  /// where those rounds left them (one block step of the refinement, to
-  /// convergence). Inter-robot loops no round has held yet wait for one: both
-  /// robots would take each in full against the other's old poses, and
-  /// together overshoot. A robot that never shared a round has nothing to
-  /// solve: its own loops are already in its local graph's estimates.
+  /// where those rounds left them (the refinement's block problem, solved to
+  /// convergence by the centralized solver). Inter-robot loops no round has held yet wait for one:
+  /// both robots would take each in full against the other's old poses, and together overshoot. A
+  /// robot that never shared a round has nothing to solve: its own loops are already in its local
+  /// graph's estimates.
   void maybeSolveAlone() {
     if (!config.solve_alone || round || anchors.empty()) return;
     if (mapper.loops().size() == solved_own_loops) return;
@@ -686,9 +693,7 @@ struct RobotNode::Impl {
     if (group().size() > 1) return;  // the group's round takes the loops in
     last_solved_alone = now;
     solved_own_loops = mapper.loops().size();
-    backend::PoseGraph g;
-    for (const core::Keyframe& k : mapper.keyframes()) g.addNode({self, k.id}, estimate(k.id));
-    for (const backend::Factor& f : mapper.graph().factors()) g.addFactor(f);
+    backend::PoseGraph g = ownGraph();
     std::size_t held = 0;
     for (const auto& [robot, n] : neighbours) {
       for (const auto& [id, f] : n.loops) {
