@@ -10,6 +10,11 @@
 /// the loops' accuracy, or by where the robots drove: a robot whose route
 /// others barely share gains little even from exact loops, and may lose (its
 /// neighbours' drift comes in with them).
+///
+/// `dcl-slam bench noise` reads the same outputs and sets the factors'
+/// covariances beside their errors against the ground truth (odometry
+/// compounded over spans of keyframes, own and inter-robot loops): whether the
+/// noise model weighs odometry and loops as their errors do.
 
 #include <cstddef>
 #include <string>

@@ -1,5 +1,6 @@
-// dcl-slam bench bound: see bound.hpp.
+// dcl-slam bench bound and bench noise: see bound.hpp.
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -18,6 +19,7 @@
 #include <dcl/backend/centralized_solver.hpp>
 #include <dcl/backend/pose_graph.hpp>
 #include <dcl/core/error.hpp>
+#include <dcl/core/se3.hpp>
 #include <dcl/eval/association.hpp>
 #include <dcl/eval/ate.hpp>
 #include <dcl/io/dataset.hpp>
@@ -80,6 +82,20 @@ RobotGraph readRobot(const std::string& run, const io::DatasetSpec& spec, std::s
   return r;
 }
 
+/// Every robot of the run in folder `run` of the dataset in folder `dataset`.
+std::vector<RobotGraph> readRun(const std::string& run, const std::string& dataset) {
+  const io::DatasetSpec spec = io::readDataset(dataset);
+  std::vector<RobotGraph> robots;
+  for (std::size_t i = 0; i < spec.robots.size(); ++i) {
+    if (!std::filesystem::exists(run + "/" + spec.robots[i].name + "/graph.g2o")) {
+      throw core::Error("run '" + run + "' has no graph.g2o for robot '" + spec.robots[i].name +
+                        "' of dataset '" + dataset + "' (is it the run of that dataset?)");
+    }
+    robots.push_back(readRobot(run, spec, i));
+  }
+  return robots;
+}
+
 /// The ATE RMSE (m, per-robot SE(3) alignment, as the run's metrics) of
 /// robot `r`'s keyframes at the estimates of `graph`; NaN when they cannot be
 /// aligned (a robot that has not moved yet).
@@ -94,6 +110,107 @@ double ateOf(const RobotGraph& r, const backend::PoseGraph& graph) {
   } catch (const core::Error&) {
     return std::numeric_limits<double>::quiet_NaN();
   }
+}
+
+/// The errors of one class of factors (or of odometry compounded over a
+/// span of keyframes) against the ground truth, beside their covariances.
+struct NoiseRow {
+  std::string factors;
+  std::size_t count = 0;
+  double error_t = 0.0;  ///< sum of squared translation errors (m^2)
+  double sigma_t = 0.0;  ///< sum of the translation covariances' traces (m^2)
+  double error_r = 0.0;  ///< likewise for rotation (rad^2)
+  double sigma_r = 0.0;
+  double nees = 0.0;  ///< sum of r^T Omega r
+
+  void add(const core::Vector6d& r, const core::Matrix6d& covariance) {
+    ++count;
+    error_t += r.head<3>().squaredNorm();
+    error_r += r.tail<3>().squaredNorm();
+    sigma_t += covariance.topLeftCorner<3, 3>().trace();
+    sigma_r += covariance.bottomRightCorner<3, 3>().trace();
+    nees += r.dot(covariance.ldlt().solve(r));
+  }
+  [[nodiscard]] double rms(double sum) const {
+    return count == 0 ? 0.0 : std::sqrt(sum / static_cast<double>(count));
+  }
+  [[nodiscard]] double neesPerDof() const {
+    return count == 0 ? 0.0 : nees / (6.0 * static_cast<double>(count));
+  }
+};
+
+core::Matrix6d covarianceOf(const backend::Factor& f) {
+  return f.information.ldlt().solve(core::Matrix6d::Identity());
+}
+
+/// The residual of `f` (as the solvers define it: log(T_from_to^-1 T_from^-1 T_to)
+/// in [rho; phi]) at the ground truth.
+core::Vector6d trueResidual(const backend::Factor& f, const Eigen::Isometry3d& T_world_from,
+                            const Eigen::Isometry3d& T_world_to) {
+  return core::logSE3(f.T_from_to.inverse() * T_world_from.inverse() * T_world_to);
+}
+
+/// Every robot's odometry compounded over `span` keyframes (windows half a span
+/// apart; covariances propagated as the keyframe selector does), then the own
+/// and the inter-robot loops, once each.
+std::vector<NoiseRow> factorNoise(const std::vector<RobotGraph>& robots,
+                                  const std::vector<std::size_t>& spans) {
+  std::vector<NoiseRow> rows;
+  for (const std::size_t span : spans) {
+    NoiseRow row{fmt::format("odometry, {} keyframe{}", span, span == 1 ? "" : "s")};
+    for (const RobotGraph& r : robots) {
+      std::map<std::size_t, const backend::Factor*> chain;  ///< by the keyframe it starts at
+      for (const backend::Factor& f : r.graph.factors()) {
+        if (f.kind == backend::FactorKind::odometry && f.from.robot == r.id && f.to.robot == r.id &&
+            f.to.keyframe.value() == f.from.keyframe.value() + 1)
+          chain[f.from.keyframe.value()] = &f;
+      }
+      const std::size_t step = std::max<std::size_t>(1, span / 2);
+      for (std::size_t first = 0; first + span < r.T_world_gt.size(); first += step) {
+        Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+        core::Matrix6d covariance = core::Matrix6d::Zero();
+        bool whole = true;
+        for (std::size_t k = first; k < first + span && whole; ++k) {
+          const auto it = chain.find(k);
+          if (it == chain.end()) {
+            whole = false;
+            break;
+          }
+          const core::Matrix6d Ad = core::adjoint(it->second->T_from_to.inverse());
+          covariance = Ad * covariance * Ad.transpose() + covarianceOf(*it->second);
+          T = T * it->second->T_from_to;
+        }
+        if (!whole) continue;
+        backend::Factor compound;
+        compound.T_from_to = T;
+        row.add(trueResidual(compound, r.T_world_gt[first], r.T_world_gt[first + span]),
+                covariance);
+      }
+    }
+    rows.push_back(row);
+  }
+  std::map<core::RobotId, const RobotGraph*> by_id;
+  for (const RobotGraph& r : robots) by_id[r.id] = &r;
+  NoiseRow intra{"own loops"};
+  NoiseRow inter{"inter-robot loops"};
+  std::set<std::pair<core::PoseKey, core::PoseKey>> seen;
+  for (const RobotGraph& r : robots) {
+    for (const backend::Factor& f : r.graph.factors()) {
+      if (f.kind == backend::FactorKind::odometry) continue;
+      if (f.from.robot == f.to.robot && f.from.robot != r.id) continue;
+      if (!by_id.contains(f.from.robot) || !by_id.contains(f.to.robot)) continue;
+      if (!seen.insert(std::minmax(f.from, f.to)).second) continue;
+      const RobotGraph& a = *by_id.at(f.from.robot);
+      const RobotGraph& b = *by_id.at(f.to.robot);
+      const std::size_t i = f.from.keyframe.value(), j = f.to.keyframe.value();
+      if (i >= a.T_world_gt.size() || j >= b.T_world_gt.size()) continue;
+      (f.from.robot == f.to.robot ? intra : inter)
+          .add(trueResidual(f, a.T_world_gt[i], b.T_world_gt[j]), covarianceOf(f));
+    }
+  }
+  rows.push_back(intra);
+  rows.push_back(inter);
+  return rows;
 }
 
 /// What of the run's factors a graph holds.
@@ -195,15 +312,7 @@ void runBound(const BoundOptions& o) {
 }  // namespace
 
 std::vector<RobotBound> computeBound(const std::string& run, const std::string& dataset) {
-  const io::DatasetSpec spec = io::readDataset(dataset);
-  std::vector<RobotGraph> robots;
-  for (std::size_t i = 0; i < spec.robots.size(); ++i) {
-    if (!std::filesystem::exists(run + "/" + spec.robots[i].name + "/graph.g2o")) {
-      throw core::Error("run '" + run + "' has no graph.g2o for robot '" + spec.robots[i].name +
-                        "' of dataset '" + dataset + "' (is it the run of that dataset?)");
-    }
-    robots.push_back(readRobot(run, spec, i));
-  }
+  const std::vector<RobotGraph> robots = readRun(run, dataset);
   backend::SolverConfig solver;
   solver.max_iterations = 200;
   // From the run's estimates, and from the chordal initialisation: a run whose
@@ -248,19 +357,66 @@ std::size_t notBelow(const std::vector<RobotBound>& robots, double RobotBound::*
   return n;
 }
 
+namespace {
+
+void runNoise(const BoundOptions& o) {
+  const std::vector<RobotGraph> robots = readRun(o.run, o.dataset);
+  const std::vector<NoiseRow> rows = factorNoise(robots, {1, 10, 100});
+  if (o.json) {
+    Json out{{"run", o.run}, {"dataset", o.dataset}, {"factors", Json::array()}};
+    for (const NoiseRow& r : rows) {
+      out["factors"].push_back({{"factors", r.factors},
+                                {"count", r.count},
+                                {"error_t_m", r.rms(r.error_t)},
+                                {"sigma_t_m", r.rms(r.sigma_t)},
+                                {"error_r_rad", r.rms(r.error_r)},
+                                {"sigma_r_rad", r.rms(r.sigma_r)},
+                                {"nees_per_dof", r.neesPerDof()}});
+    }
+    fmt::print("{}\n", out.dump(2));
+    return;
+  }
+  fmt::print(
+      "Factors against the ground truth: RMS error and RMS standard deviation (root of the "
+      "covariance's trace), translation and rotation; NEES per degree of freedom (1: the "
+      "covariances describe the errors; below: too loose; above: too tight)\n");
+  fmt::print("{:<24}{:>7}{:>11}{:>11}{:>13}{:>13}{:>9}\n", "factors", "count", "error (m)",
+             "sigma (m)", "error (mrad)", "sigma (mrad)", "NEES/dof");
+  for (const NoiseRow& r : rows) {
+    fmt::print("{:<24}{:>7}", r.factors, r.count);
+    if (r.count == 0) {
+      fmt::print("\n");
+      continue;
+    }
+    fmt::print("{:>11.4f}{:>11.4f}{:>13.3f}{:>13.3f}{:>9.3f}\n", r.rms(r.error_t), r.rms(r.sigma_t),
+               1e3 * r.rms(r.error_r), 1e3 * r.rms(r.sigma_r), r.neesPerDof());
+  }
+}
+
+}  // namespace
+
 void addBenchBoundCommand(CLI::App& bench) {
-  auto o = std::make_shared<BoundOptions>();
-  CLI::App* cmd = bench.add_subcommand(
-      "bound",
+  // Both read a run's outputs beside its dataset.
+  const auto add = [&bench](const char* name, const char* help,
+                            void (*command)(const BoundOptions&)) {
+    auto o = std::make_shared<BoundOptions>();
+    CLI::App* cmd = bench.add_subcommand(name, help);
+    cmd->add_option("--run", o->run, "output folder of `dcl-slam run` (one folder per robot)")
+        ->required();
+    cmd->add_option("--dataset", o->dataset, "the dataset it ran (dataset.yaml), with ground truth")
+        ->required();
+    cmd->add_flag("--json", o->json, "print the result as JSON");
+    cmd->callback([o, command] { command(*o); });
+  };
+  add("bound",
       "how far a run's loops could take its robots: the ATE of the odometry, of each robot's "
       "own SLAM (odometry and its own loops), of the run, of the run's joint graph solved "
-      "centrally, and of that graph with every inter-robot loop exact (from the ground truth)");
-  cmd->add_option("--run", o->run, "output folder of `dcl-slam run` (one folder per robot)")
-      ->required();
-  cmd->add_option("--dataset", o->dataset, "the dataset it ran (dataset.yaml), with ground truth")
-      ->required();
-  cmd->add_flag("--json", o->json, "print the result as JSON");
-  cmd->callback([o] { runBound(*o); });
+      "centrally, and of that graph with every inter-robot loop exact (from the ground truth)",
+      runBound);
+  add("noise",
+      "how well a run's factor covariances describe their errors: each robot's odometry over "
+      "1, 10 and 100 keyframes, its own loops and the inter-robot loops, against the ground truth",
+      runNoise);
 }
 
 }  // namespace dcl::apps

@@ -67,8 +67,9 @@ void addSwarmCommand(CLI::App& app, const AppConfig& config);
 /// run) on simulated datasets (cmd_system.cpp).
 void addBenchSystemCommand(CLI::App& bench, const AppConfig& config);
 
-/// `bench bound`: a run's ATE beside its joint graph's optimum and
-/// that optimum with exact loops (cmd_bound.cpp).
+/// `bench bound` (a run's ATE beside its joint graph's optimum and
+/// that optimum with exact loops) and `bench noise` (its factors' covariances
+/// against their errors), cmd_bound.cpp.
 void addBenchBoundCommand(CLI::App& bench);
 
 }  // namespace dcl::apps

@@ -332,6 +332,90 @@ class Demo(unittest.TestCase):
         self.assertIn("graph.g2o", err)
         self.assertIn("'a'", err)
 
+    def check_noise(self, out):
+        """bench noise on the demo's outputs against the same figures computed here
+        from graph.g2o, trajectory.tum and the ground truth: keyframe odometry,
+        own and inter-robot loops; compounded odometry's covariance grows with
+        its span."""
+        import numpy as np
+        dataset = os.path.join(out, "dataset")
+        _, stdout, _ = run("bench", "noise", "--run", out, "--dataset", dataset, "--json")
+        rows = {r["factors"]: r for r in json.loads(stdout)["factors"]}
+
+        def pose(v):
+            x, y, z, w = v[3:7]
+            n = np.sqrt(x * x + y * y + z * z + w * w)
+            x, y, z, w = x / n, y / n, z / n, w / n
+            T = np.eye(4)
+            T[:3, :3] = [[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]]
+            T[:3, 3] = v[:3]
+            return T
+
+        def hat(w):
+            return np.array([[0, -w[2], w[1]], [w[2], 0, -w[0]], [-w[1], w[0], 0]])
+
+        def log(T):  # [rho; phi], rho = J_l(phi)^-1 t
+            R = T[:3, :3]
+            angle = np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))
+            axis = np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2
+            phi = axis if angle < 1e-12 else axis * angle / np.sin(angle)
+            if angle < 1e-6:
+                J_inv = np.eye(3) - hat(phi) / 2
+            else:
+                J_inv = (np.eye(3) - hat(phi) / 2 + (1 / angle ** 2 - (1 + np.cos(angle)) /
+                         (2 * angle * np.sin(angle))) * hat(phi) @ hat(phi))
+            return np.concatenate([J_inv @ T[:3, 3], phi])
+
+        names = ["a", "b", "c"]
+        truth = {}
+        for r in names:
+            gt = {}
+            with open(os.path.join(dataset, "ground_truth", r + ".tum")) as f:
+                for line in f:
+                    v = line.split()
+                    if len(v) == 8:
+                        gt[round(float(v[0]), 6)] = pose([float(x) for x in v[1:]])
+            with open(os.path.join(out, r, "trajectory.tum")) as f:
+                truth[r] = [gt[round(float(line.split()[0]), 6)] for line in f if line.strip()]
+        sums = {"odometry": [], "own": [], "inter": []}
+        seen = set()
+        for r in names:
+            with open(os.path.join(out, r, "graph.g2o")) as f:
+                for line in f:
+                    v = line.split()
+                    if v[0] != "EDGE_SE3:QUAT":
+                        continue
+                    ends = [(chr(int(k) >> 56), int(k) & ((1 << 56) - 1)) for k in v[1:3]]
+                    (ra, i), (rb, j) = ends
+                    if ra == rb and ra != r or tuple(sorted(ends)) in seen:
+                        continue
+                    seen.add(tuple(sorted(ends)))
+                    kind = "inter" if ra != rb else ("odometry" if j == i + 1 else "own")
+                    info = np.zeros((6, 6))
+                    info[np.triu_indices(6)] = [float(x) for x in v[10:31]]
+                    info = info + np.triu(info, 1).T
+                    Z = pose([float(x) for x in v[3:10]])
+                    e = log(np.linalg.inv(Z) @ np.linalg.inv(truth[ra][i]) @ truth[rb][j])
+                    C = np.linalg.inv(info)
+                    sums[kind].append((e[:3] @ e[:3], np.trace(C[:3, :3]), e[3:] @ e[3:],
+                                       np.trace(C[3:, 3:]), e @ info @ e))
+        for kind, key in (("odometry", "odometry, 1 keyframe"), ("own", "own loops"),
+                          ("inter", "inter-robot loops")):
+            row, mine = rows[key], np.array(sums[kind])
+            self.assertEqual(row["count"], len(mine), key)
+            self.assertGreater(len(mine), 0, key)
+            mean = mine.mean(axis=0)
+            for field, value in (("error_t_m", np.sqrt(mean[0])), ("sigma_t_m", np.sqrt(mean[1])),
+                                 ("error_r_rad", np.sqrt(mean[2])),
+                                 ("sigma_r_rad", np.sqrt(mean[3])), ("nees_per_dof", mean[4] / 6)):
+                self.assertAlmostEqual(row[field], value, delta=1e-6 * value, msg=key + field)
+        one, ten = rows["odometry, 1 keyframe"], rows["odometry, 10 keyframes"]
+        self.assertGreater(ten["count"], 0)
+        self.assertGreater(ten["sigma_t_m"], 2 * one["sigma_t_m"])
+        self.assertGreater(ten["sigma_r_rad"], 2 * one["sigma_r_rad"])
+
     def test_demo_runs_the_swarm_and_writes_its_outputs(self):
         with tempfile.TemporaryDirectory() as tmp:
             _, out, _ = run("demo", "--out", tmp)
@@ -357,6 +441,7 @@ class Demo(unittest.TestCase):
             points = self.check_maps(self, tmp, metrics)
             self.assertGreater(len(points), 10000)
             self.check_bound(tmp, metrics)
+            self.check_noise(tmp)
         self.assertIn("ATE collab", out)
         self.assertIn("map.ply", out)
         self.assertLess(len(out.splitlines()), 12)
