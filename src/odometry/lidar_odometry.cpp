@@ -139,7 +139,8 @@ IcpConfig LidarOdometry::frameIcpConfig(double sigma) const {
 core::Matrix6d LidarOdometry::covarianceOf(const RegistrationResult& registration) const {
   // Information scaled by the residual variance, bounded so that directions the
   // scene leaves open get max_sigma rather than infinity, plus a floor because
-  // ICP's residuals are correlated and its raw covariance far too optimistic.
+  // ICP's residuals are correlated and its raw covariance far too optimistic
+  // (a lower floor about the spin axis z, which the scan pins best).
   const double noise = std::max(registration.rmse, 0.01);
   const double max_information = 1.0 / (config_.max_sigma * config_.max_sigma);
   const core::Matrix6d information =
@@ -148,7 +149,8 @@ core::Matrix6d LidarOdometry::covarianceOf(const RegistrationResult& registratio
   const double t2 = config_.min_translation_sigma * config_.min_translation_sigma;
   const double r2 = config_.min_rotation_sigma * config_.min_rotation_sigma;
   covariance.diagonal().head<3>().array() += t2;
-  covariance.diagonal().tail<3>().array() += r2;
+  covariance.diagonal().segment<2>(3).array() += r2;
+  covariance(5, 5) += config_.min_yaw_sigma * config_.min_yaw_sigma;
   return covariance;
 }
 

@@ -28,7 +28,12 @@ struct OdometryConfig {
   bool deskew = true;             ///< undo the motion during the sweep when points carry times
   std::size_t min_points = 100;   ///< a scan with fewer usable points is skipped
   double min_translation_sigma = 0.01;  ///< m, floor of the reported per-frame covariance
-  double min_rotation_sigma = 1e-3;     ///< rad, floor of the reported per-frame covariance
+  /// rad, floor of the reported per-frame covariance about the sensor's x and y axes.
+  double min_rotation_sigma = 1e-3;
+  /// rad, the same about its z (spin) axis: walls all round pin the heading,
+  /// and the odometry's keyframe yaw errs about a fifth as much as its roll
+  /// and pitch (`dcl-slam bench noise`, BENCHMARKS.md), on HDL-64 and VLP-16 alike.
+  double min_yaw_sigma = 1.5e-4;
   double max_sigma = 10.0;  ///< m or rad, ceiling of the covariance in unobservable directions
   AdaptiveThresholdConfig threshold{};  ///< KISS-ICP's adaptive correspondence threshold
   IcpConfig icp{};  ///< registration (the odometry overrides its distance and kernel per frame)
@@ -48,7 +53,8 @@ struct OdometryConfig {
     v.field("deskew", deskew, "undo the motion during the sweep when points carry times");
     v.field("min_points", min_points, "a scan with fewer usable points is skipped");
     v.field("min_translation_sigma", min_translation_sigma, "m, covariance floor");
-    v.field("min_rotation_sigma", min_rotation_sigma, "rad, covariance floor");
+    v.field("min_rotation_sigma", min_rotation_sigma, "rad, covariance floor about x and y");
+    v.field("min_yaw_sigma", min_yaw_sigma, "rad, covariance floor about the spin axis z");
     v.field("max_sigma", max_sigma, "m or rad, covariance ceiling in unobservable directions");
     v.section("threshold", threshold, "adaptive correspondence threshold");
     v.section("icp", icp, "registration");
