@@ -122,9 +122,15 @@ struct NoiseRow {
   double error_r = 0.0;  ///< likewise for rotation (rad^2)
   double sigma_r = 0.0;
   double nees = 0.0;  ///< sum of r^T Omega r
+  /// Per axis of the factor's frame (x y z, then rotations about them): sums
+  /// of squared errors and of variances.
+  core::Vector6d error_axes = core::Vector6d::Zero();
+  core::Vector6d sigma_axes = core::Vector6d::Zero();
 
   void add(const core::Vector6d& r, const core::Matrix6d& covariance) {
     ++count;
+    error_axes += r.cwiseAbs2();
+    sigma_axes += covariance.diagonal();
     error_t += r.head<3>().squaredNorm();
     error_r += r.tail<3>().squaredNorm();
     sigma_t += covariance.topLeftCorner<3, 3>().trace();
@@ -133,6 +139,10 @@ struct NoiseRow {
   }
   [[nodiscard]] double rms(double sum) const {
     return count == 0 ? 0.0 : std::sqrt(sum / static_cast<double>(count));
+  }
+  [[nodiscard]] core::Vector6d rms(const core::Vector6d& sums) const {
+    return count == 0 ? core::Vector6d::Zero()
+                      : core::Vector6d((sums / static_cast<double>(count)).cwiseSqrt());
   }
   [[nodiscard]] double neesPerDof() const {
     return count == 0 ? 0.0 : nees / (6.0 * static_cast<double>(count));
@@ -359,6 +369,11 @@ std::size_t notBelow(const std::vector<RobotBound>& robots, double RobotBound::*
 
 namespace {
 
+/// x y z (m) and roll pitch yaw (rad) as a JSON array.
+Json axes(const core::Vector6d& v) {
+  return Json(std::vector<double>(v.data(), v.data() + 6));
+}
+
 void runNoise(const BoundOptions& o) {
   const std::vector<RobotGraph> robots = readRun(o.run, o.dataset);
   const std::vector<NoiseRow> rows = factorNoise(robots, {1, 10, 100});
@@ -371,7 +386,9 @@ void runNoise(const BoundOptions& o) {
                                 {"sigma_t_m", r.rms(r.sigma_t)},
                                 {"error_r_rad", r.rms(r.error_r)},
                                 {"sigma_r_rad", r.rms(r.sigma_r)},
-                                {"nees_per_dof", r.neesPerDof()}});
+                                {"nees_per_dof", r.neesPerDof()},
+                                {"error_axes", axes(r.rms(r.error_axes))},
+                                {"sigma_axes", axes(r.rms(r.sigma_axes))}});
     }
     fmt::print("{}\n", out.dump(2));
     return;
@@ -390,6 +407,23 @@ void runNoise(const BoundOptions& o) {
     }
     fmt::print("{:>11.4f}{:>11.4f}{:>13.3f}{:>13.3f}{:>9.3f}\n", r.rms(r.error_t), r.rms(r.sigma_t),
                1e3 * r.rms(r.error_r), 1e3 * r.rms(r.sigma_r), r.neesPerDof());
+  }
+  fmt::print(
+      "\nPer axis of the factor's frame (the sensor's: x forward, y left, z up when level): RMS "
+      "error / RMS standard deviation, cm and mrad\n");
+  fmt::print("{:<24}", "factors");
+  for (const char* axis : {"x", "y", "z", "roll", "pitch", "yaw"}) fmt::print("{:>15}", axis);
+  fmt::print("\n");
+  for (const NoiseRow& r : rows) {
+    if (r.count == 0) continue;
+    fmt::print("{:<24}", r.factors);
+    const core::Vector6d error = r.rms(r.error_axes);
+    const core::Vector6d sigma = r.rms(r.sigma_axes);
+    for (int k = 0; k < 6; ++k) {
+      const double unit = k < 3 ? 1e2 : 1e3;
+      fmt::print("{:>15}", fmt::format("{:.2f} / {:.2f}", unit * error(k), unit * sigma(k)));
+    }
+    fmt::print("\n");
   }
 }
 

@@ -400,7 +400,7 @@ class Demo(unittest.TestCase):
                     e = log(np.linalg.inv(Z) @ np.linalg.inv(truth[ra][i]) @ truth[rb][j])
                     C = np.linalg.inv(info)
                     sums[kind].append((e[:3] @ e[:3], np.trace(C[:3, :3]), e[3:] @ e[3:],
-                                       np.trace(C[3:, 3:]), e @ info @ e))
+                                       np.trace(C[3:, 3:]), e @ info @ e, *(e * e), *np.diag(C)))
         for kind, key in (("odometry", "odometry, 1 keyframe"), ("own", "own loops"),
                           ("inter", "inter-robot loops")):
             row, mine = rows[key], np.array(sums[kind])
@@ -411,6 +411,11 @@ class Demo(unittest.TestCase):
                                  ("error_r_rad", np.sqrt(mean[2])),
                                  ("sigma_r_rad", np.sqrt(mean[3])), ("nees_per_dof", mean[4] / 6)):
                 self.assertAlmostEqual(row[field], value, delta=1e-6 * value, msg=key + field)
+            for k in range(6):  # per axis: x y z, roll pitch yaw
+                for field, value in (("error_axes", np.sqrt(mean[5 + k])),
+                                     ("sigma_axes", np.sqrt(mean[11 + k]))):
+                    self.assertAlmostEqual(row[field][k], value, delta=1e-6 * value + 1e-12,
+                                           msg=f"{key} {field}[{k}]")
         one, ten = rows["odometry, 1 keyframe"], rows["odometry, 10 keyframes"]
         self.assertGreater(ten["count"], 0)
         self.assertGreater(ten["sigma_t_m"], 2 * one["sigma_t_m"])
