@@ -117,32 +117,33 @@ double ateOf(const RobotGraph& r, const backend::PoseGraph& graph) {
 struct NoiseRow {
   std::string factors;
   std::size_t count = 0;
-  double error_t = 0.0;  ///< sum of squared translation errors (m^2)
-  double sigma_t = 0.0;  ///< sum of the translation covariances' traces (m^2)
-  double error_r = 0.0;  ///< likewise for rotation (rad^2)
-  double sigma_r = 0.0;
-  double nees = 0.0;  ///< sum of r^T Omega r
   /// Per axis of the factor's frame (x y z, then rotations about them): sums
-  /// of squared errors and of variances.
+  /// of squared errors and of variances (m^2, rad^2).
   core::Vector6d error_axes = core::Vector6d::Zero();
   core::Vector6d sigma_axes = core::Vector6d::Zero();
+  double nees = 0.0;  ///< sum of r^T Omega r
 
   void add(const core::Vector6d& r, const core::Matrix6d& covariance) {
     ++count;
     error_axes += r.cwiseAbs2();
     sigma_axes += covariance.diagonal();
-    error_t += r.head<3>().squaredNorm();
-    error_r += r.tail<3>().squaredNorm();
-    sigma_t += covariance.topLeftCorner<3, 3>().trace();
-    sigma_r += covariance.bottomRightCorner<3, 3>().trace();
     nees += r.dot(covariance.ldlt().solve(r));
   }
+  /// The root of a sum's mean over the factors.
   [[nodiscard]] double rms(double sum) const {
     return count == 0 ? 0.0 : std::sqrt(sum / static_cast<double>(count));
   }
   [[nodiscard]] core::Vector6d rms(const core::Vector6d& sums) const {
     return count == 0 ? core::Vector6d::Zero()
                       : core::Vector6d((sums / static_cast<double>(count)).cwiseSqrt());
+  }
+  /// RMS of the translation (first) or rotation error's norm, and of the
+  /// root of the covariance block's trace.
+  [[nodiscard]] double errorRms(int block) const {
+    return rms(error_axes.segment<3>(3 * block).sum());
+  }
+  [[nodiscard]] double sigmaRms(int block) const {
+    return rms(sigma_axes.segment<3>(3 * block).sum());
   }
   [[nodiscard]] double neesPerDof() const {
     return count == 0 ? 0.0 : nees / (6.0 * static_cast<double>(count));
@@ -180,7 +181,7 @@ std::vector<NoiseRow> factorNoise(const std::vector<RobotGraph>& robots,
         Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
         core::Matrix6d covariance = core::Matrix6d::Zero();
         bool whole = true;
-        for (std::size_t k = first; k < first + span && whole; ++k) {
+        for (std::size_t k = first; k < first + span; ++k) {
           const auto it = chain.find(k);
           if (it == chain.end()) {
             whole = false;
@@ -319,6 +320,64 @@ void runBound(const BoundOptions& o) {
   fmt::print("\n");
 }
 
+/// x y z (m) and roll pitch yaw (rad) as a JSON array.
+Json axes(const core::Vector6d& v) {
+  return Json(std::vector<double>(v.data(), v.data() + 6));
+}
+
+void runNoise(const BoundOptions& o) {
+  const std::vector<RobotGraph> robots = readRun(o.run, o.dataset);
+  const std::vector<NoiseRow> rows = factorNoise(robots, {1, 10, 100});
+  if (o.json) {
+    Json out{{"run", o.run}, {"dataset", o.dataset}, {"factors", Json::array()}};
+    for (const NoiseRow& r : rows) {
+      out["factors"].push_back({{"factors", r.factors},
+                                {"count", r.count},
+                                {"error_t_m", r.errorRms(0)},
+                                {"sigma_t_m", r.sigmaRms(0)},
+                                {"error_r_rad", r.errorRms(1)},
+                                {"sigma_r_rad", r.sigmaRms(1)},
+                                {"nees_per_dof", r.neesPerDof()},
+                                {"error_axes", axes(r.rms(r.error_axes))},
+                                {"sigma_axes", axes(r.rms(r.sigma_axes))}});
+    }
+    fmt::print("{}\n", out.dump(2));
+    return;
+  }
+  fmt::print(
+      "Factors against the ground truth: RMS error and RMS standard deviation (root of the "
+      "covariance's trace), translation and rotation; NEES per degree of freedom (1: the "
+      "covariances describe the errors; below: too loose; above: too tight)\n");
+  fmt::print("{:<24}{:>7}{:>11}{:>11}{:>13}{:>13}{:>9}\n", "factors", "count", "error (m)",
+             "sigma (m)", "error (mrad)", "sigma (mrad)", "NEES/dof");
+  for (const NoiseRow& r : rows) {
+    fmt::print("{:<24}{:>7}", r.factors, r.count);
+    if (r.count == 0) {
+      fmt::print("\n");
+      continue;
+    }
+    fmt::print("{:>11.4f}{:>11.4f}{:>13.3f}{:>13.3f}{:>9.3f}\n", r.errorRms(0), r.sigmaRms(0),
+               1e3 * r.errorRms(1), 1e3 * r.sigmaRms(1), r.neesPerDof());
+  }
+  fmt::print(
+      "\nPer axis of the factor's frame (the sensor's: x forward, y left, z up when level): RMS "
+      "error / RMS standard deviation, cm and mrad\n");
+  fmt::print("{:<24}", "factors");
+  for (const char* axis : {"x", "y", "z", "roll", "pitch", "yaw"}) fmt::print("{:>15}", axis);
+  fmt::print("\n");
+  for (const NoiseRow& r : rows) {
+    if (r.count == 0) continue;
+    fmt::print("{:<24}", r.factors);
+    const core::Vector6d error = r.rms(r.error_axes);
+    const core::Vector6d sigma = r.rms(r.sigma_axes);
+    for (int k = 0; k < 6; ++k) {
+      const double unit = k < 3 ? 1e2 : 1e3;
+      fmt::print("{:>15}", fmt::format("{:.2f} / {:.2f}", unit * error(k), unit * sigma(k)));
+    }
+    fmt::print("\n");
+  }
+}
+
 }  // namespace
 
 std::vector<RobotBound> computeBound(const std::string& run, const std::string& dataset) {
@@ -366,68 +425,6 @@ std::size_t notBelow(const std::vector<RobotBound>& robots, double RobotBound::*
   for (const RobotBound& r : robots) n += r.*value >= r.*base ? 1 : 0;  // false for NaN
   return n;
 }
-
-namespace {
-
-/// x y z (m) and roll pitch yaw (rad) as a JSON array.
-Json axes(const core::Vector6d& v) {
-  return Json(std::vector<double>(v.data(), v.data() + 6));
-}
-
-void runNoise(const BoundOptions& o) {
-  const std::vector<RobotGraph> robots = readRun(o.run, o.dataset);
-  const std::vector<NoiseRow> rows = factorNoise(robots, {1, 10, 100});
-  if (o.json) {
-    Json out{{"run", o.run}, {"dataset", o.dataset}, {"factors", Json::array()}};
-    for (const NoiseRow& r : rows) {
-      out["factors"].push_back({{"factors", r.factors},
-                                {"count", r.count},
-                                {"error_t_m", r.rms(r.error_t)},
-                                {"sigma_t_m", r.rms(r.sigma_t)},
-                                {"error_r_rad", r.rms(r.error_r)},
-                                {"sigma_r_rad", r.rms(r.sigma_r)},
-                                {"nees_per_dof", r.neesPerDof()},
-                                {"error_axes", axes(r.rms(r.error_axes))},
-                                {"sigma_axes", axes(r.rms(r.sigma_axes))}});
-    }
-    fmt::print("{}\n", out.dump(2));
-    return;
-  }
-  fmt::print(
-      "Factors against the ground truth: RMS error and RMS standard deviation (root of the "
-      "covariance's trace), translation and rotation; NEES per degree of freedom (1: the "
-      "covariances describe the errors; below: too loose; above: too tight)\n");
-  fmt::print("{:<24}{:>7}{:>11}{:>11}{:>13}{:>13}{:>9}\n", "factors", "count", "error (m)",
-             "sigma (m)", "error (mrad)", "sigma (mrad)", "NEES/dof");
-  for (const NoiseRow& r : rows) {
-    fmt::print("{:<24}{:>7}", r.factors, r.count);
-    if (r.count == 0) {
-      fmt::print("\n");
-      continue;
-    }
-    fmt::print("{:>11.4f}{:>11.4f}{:>13.3f}{:>13.3f}{:>9.3f}\n", r.rms(r.error_t), r.rms(r.sigma_t),
-               1e3 * r.rms(r.error_r), 1e3 * r.rms(r.sigma_r), r.neesPerDof());
-  }
-  fmt::print(
-      "\nPer axis of the factor's frame (the sensor's: x forward, y left, z up when level): RMS "
-      "error / RMS standard deviation, cm and mrad\n");
-  fmt::print("{:<24}", "factors");
-  for (const char* axis : {"x", "y", "z", "roll", "pitch", "yaw"}) fmt::print("{:>15}", axis);
-  fmt::print("\n");
-  for (const NoiseRow& r : rows) {
-    if (r.count == 0) continue;
-    fmt::print("{:<24}", r.factors);
-    const core::Vector6d error = r.rms(r.error_axes);
-    const core::Vector6d sigma = r.rms(r.sigma_axes);
-    for (int k = 0; k < 6; ++k) {
-      const double unit = k < 3 ? 1e2 : 1e3;
-      fmt::print("{:>15}", fmt::format("{:.2f} / {:.2f}", unit * error(k), unit * sigma(k)));
-    }
-    fmt::print("\n");
-  }
-}
-
-}  // namespace
 
 void addBenchBoundCommand(CLI::App& bench) {
   // Both read a run's outputs beside its dataset.
