@@ -154,11 +154,12 @@ core::Matrix6d covarianceOf(const backend::Factor& f) {
   return f.information.ldlt().solve(core::Matrix6d::Identity());
 }
 
-/// The residual of `f` (as the solvers define it: log(T_from_to^-1 T_from^-1 T_to)
-/// in [rho; phi]) at the ground truth.
-core::Vector6d trueResidual(const backend::Factor& f, const Eigen::Isometry3d& T_world_from,
+/// The residual of a measurement T_from_to (as the solvers define it: log(T_from_to^-1 T_from^-1
+/// T_to) in [rho; phi]) at the ground truth.
+core::Vector6d trueResidual(const Eigen::Isometry3d& T_from_to,
+                            const Eigen::Isometry3d& T_world_from,
                             const Eigen::Isometry3d& T_world_to) {
-  return core::logSE3(f.T_from_to.inverse() * T_world_from.inverse() * T_world_to);
+  return core::logSE3(T_from_to.inverse() * T_world_from.inverse() * T_world_to);
 }
 
 /// Every robot's odometry compounded over `span` keyframes (windows half a span
@@ -192,10 +193,7 @@ std::vector<NoiseRow> factorNoise(const std::vector<RobotGraph>& robots,
           T = T * it->second->T_from_to;
         }
         if (!whole) continue;
-        backend::Factor compound;
-        compound.T_from_to = T;
-        row.add(trueResidual(compound, r.T_world_gt[first], r.T_world_gt[first + span]),
-                covariance);
+        row.add(trueResidual(T, r.T_world_gt[first], r.T_world_gt[first + span]), covariance);
       }
     }
     rows.push_back(row);
@@ -216,7 +214,7 @@ std::vector<NoiseRow> factorNoise(const std::vector<RobotGraph>& robots,
       const std::size_t i = f.from.keyframe.value(), j = f.to.keyframe.value();
       if (i >= a.T_world_gt.size() || j >= b.T_world_gt.size()) continue;
       (f.from.robot == f.to.robot ? intra : inter)
-          .add(trueResidual(f, a.T_world_gt[i], b.T_world_gt[j]), covarianceOf(f));
+          .add(trueResidual(f.T_from_to, a.T_world_gt[i], b.T_world_gt[j]), covarianceOf(f));
     }
   }
   rows.push_back(intra);
