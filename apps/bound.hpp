@@ -31,6 +31,12 @@ struct RobotBound {
   double run = 0.0;        ///< the run's final estimate
   double optimum = 0.0;    ///< the run's joint graph, solved centrally
   double exact = 0.0;      ///< the same with every inter-robot loop exact
+  /// The same three under one SE(3) alignment for all robots together (the
+  /// merged map's consistency, the run's `ate_rmse_joint`): NaN when the robots
+  /// share too few poses with the ground truth to align them.
+  double run_joint = 0.0;
+  double optimum_joint = 0.0;
+  double exact_joint = 0.0;
 };
 
 /// The bound of the run in folder `run` (outputs of `dcl-slam run`) of the

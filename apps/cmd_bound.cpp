@@ -20,6 +20,7 @@
 #include <dcl/backend/pose_graph.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/core/se3.hpp>
+#include <dcl/eval/alignment.hpp>
 #include <dcl/eval/association.hpp>
 #include <dcl/eval/ate.hpp>
 #include <dcl/io/dataset.hpp>
@@ -99,17 +100,48 @@ std::vector<RobotGraph> readRun(const std::string& run, const std::string& datas
 /// The ATE RMSE (m, per-robot SE(3) alignment, as the run's metrics) of
 /// robot `r`'s keyframes at the estimates of `graph`; NaN when they cannot be
 /// aligned (a robot that has not moved yet).
-double ateOf(const RobotGraph& r, const backend::PoseGraph& graph) {
+/// Robot r's keyframes in `graph`, paired with its ground truth.
+eval::Association pairsOf(const RobotGraph& r, const backend::PoseGraph& graph) {
   std::vector<Eigen::Isometry3d> poses;
   for (std::size_t k = 0; k < r.stamps.size(); ++k)
     poses.push_back(graph.estimate({r.id, core::KeyframeId(k)}));
   const core::Trajectory estimate(r.stamps, std::move(poses));
-  const eval::Association pairs = eval::associateByTimestamp(estimate, r.ground_truth, 0.01);
+  return eval::associateByTimestamp(estimate, r.ground_truth, 0.01);
+}
+
+double ateOf(const RobotGraph& r, const backend::PoseGraph& graph) {
   try {
-    return eval::computeAte(pairs, eval::Alignment::se3).translation_m.rmse;
+    return eval::computeAte(pairsOf(r, graph), eval::Alignment::se3).translation_m.rmse;
   } catch (const core::Error&) {
     return std::numeric_limits<double>::quiet_NaN();
   }
+}
+
+/// Every robot's ATE in `graph` under one SE(3) alignment fitted on all their
+/// pairs together, as the run's report measures `ate_rmse_joint`; NaN for all
+/// when that alignment cannot be fitted.
+std::vector<double> jointAteOf(const std::vector<RobotGraph>& robots,
+                               const backend::PoseGraph& graph) {
+  std::vector<eval::Association> pairs;
+  eval::Association all;
+  for (const RobotGraph& r : robots) {
+    pairs.push_back(pairsOf(r, graph));
+    const eval::Association& p = pairs.back();
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      all.estimate.push_back(p.estimate.stamp(i), p.estimate.pose(i));
+      all.ground_truth.push_back(p.ground_truth.stamp(i), p.ground_truth.pose(i));
+    }
+  }
+  std::vector<double> out(robots.size(), std::numeric_limits<double>::quiet_NaN());
+  try {
+    const eval::Sim3 S_gt_common = eval::computeAlignment(all, eval::Alignment::se3);
+    for (std::size_t i = 0; i < robots.size(); ++i) {
+      if (pairs[i].size() == 0) continue;
+      out[i] = eval::computeAte(pairs[i], S_gt_common, eval::Alignment::se3).translation_m.rmse;
+    }
+  } catch (const core::Error&) {
+  }
+  return out;
 }
 
 /// The errors of one class of factors (or of odometry compounded over a
@@ -277,11 +309,19 @@ void runBound(const BoundOptions& o) {
       {"run", &RobotBound::run},
       {"optimum", &RobotBound::optimum},
       {"exact", &RobotBound::exact}};
+  const std::vector<std::pair<const char*, double RobotBound::*>> joint_columns{
+      {"run", &RobotBound::run_joint},
+      {"optimum", &RobotBound::optimum_joint},
+      {"exact", &RobotBound::exact_joint}};
+  const auto cell = [](double value) {
+    return std::isnan(value) ? std::string("-") : fmt::format("{:.4f}", value);
+  };
   if (o.json) {
     Json out{{"run", o.run}, {"dataset", o.dataset}, {"robots", Json::array()}};
     for (const RobotBound& r : robots) {
       Json j{{"name", r.name}};
       for (const auto& [key, field] : columns) j[std::string("ate_") + key] = r.*field;
+      for (const auto& [key, field] : joint_columns) j[std::string("ate_joint_") + key] = r.*field;
       out["robots"].push_back(j);
     }
     out["lowered"] = Json::object();
@@ -300,8 +340,7 @@ void runBound(const BoundOptions& o) {
              "optimum", "loops exact");
   for (const RobotBound& r : robots) {
     fmt::print("{:<10}", r.name);
-    for (const auto& [key, field] : columns)
-      fmt::print("{:>12}", std::isnan(r.*field) ? "-" : fmt::format("{:.4f}", r.*field));
+    for (const auto& [key, field] : columns) fmt::print("{:>12}", cell(r.*field));
     fmt::print("\n");
   }
   fmt::print("{:<10}{:>12}", "lowered", "");
@@ -315,7 +354,15 @@ void runBound(const BoundOptions& o) {
                fmt::format("{} of {}", notBelow(robots, columns[c].second, &RobotBound::odometry),
                            robots.size()));
   }
-  fmt::print("\n");
+  fmt::print(
+      "\n\nATE (m) per robot under one alignment for all robots together (the merged map: "
+      "how well the robots' frames agree)\n");
+  fmt::print("{:<10}{:>12}{:>12}{:>12}\n", "robot", "the run", "optimum", "loops exact");
+  for (const RobotBound& r : robots) {
+    fmt::print("{:<10}", r.name);
+    for (const auto& [key, field] : joint_columns) fmt::print("{:>12}", cell(r.*field));
+    fmt::print("\n");
+  }
 }
 
 /// x y z (m) and roll pitch yaw (rad) as a JSON array.
@@ -397,10 +444,18 @@ std::vector<RobotBound> computeBound(const std::string& run, const std::string& 
   const backend::PoseGraph own_loops = solved(Factors::own_loops);
   const backend::PoseGraph optimum = solved(Factors::joint);
   const backend::PoseGraph exact = solved(Factors::exact);
+  backend::PoseGraph run_graph;  ///< every robot's own keyframes where the run left them
+  for (const RobotGraph& r : robots)
+    for (const auto& [key, T] : r.graph.nodes()) run_graph.addNode(key, T);
+  const std::vector<double> run_joint = jointAteOf(robots, run_graph);
+  const std::vector<double> optimum_joint = jointAteOf(robots, optimum);
+  const std::vector<double> exact_joint = jointAteOf(robots, exact);
   std::vector<RobotBound> out;
-  for (const RobotGraph& r : robots) {
+  for (std::size_t i = 0; i < robots.size(); ++i) {
+    const RobotGraph& r = robots[i];
     out.push_back({r.name, ateOf(r, odometry), ateOf(r, own_loops), ateOf(r, r.graph),
-                   ateOf(r, optimum), ateOf(r, exact)});
+                   ateOf(r, optimum), ateOf(r, exact), run_joint[i], optimum_joint[i],
+                   exact_joint[i]});
   }
   return out;
 }

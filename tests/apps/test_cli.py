@@ -319,9 +319,15 @@ class Demo(unittest.TestCase):
             self.assertAlmostEqual(b["ate_run"], m["ate_rmse"], delta=1e-6)
             self.assertAlmostEqual(b["ate_odometry"], m["ate_rmse_odometry_only"],
                                    delta=1e-3 * m["ate_rmse_odometry_only"])
-            for key in ("ate_own_loops", "ate_optimum", "ate_exact"):
+            # One alignment for all robots, as the run's report fits it.
+            self.assertAlmostEqual(b["ate_joint_run"], m["ate_rmse_joint"], delta=1e-6)
+            for key in ("ate_own_loops", "ate_optimum", "ate_exact", "ate_joint_optimum",
+                        "ate_joint_exact"):
                 self.assertGreater(b[key], 0.0, key)
                 self.assertLess(b[key], 0.5, key)
+            # Aligned with the others a robot can only lose against its own alignment.
+            for key in ("run", "optimum", "exact"):
+                self.assertGreaterEqual(b["ate_joint_" + key], b["ate_" + key] - 1e-9, key)
         for key in ("own_loops", "run", "optimum", "exact"):
             self.assertIn("mean_ate_lowered", bound["lowered"][key])
         # A run of another dataset is named, with the robot it lacks.
