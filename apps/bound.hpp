@@ -39,10 +39,20 @@ struct RobotBound {
   double exact_joint = 0.0;
 };
 
+/// The chi-square of the run's joint graph (odometry, own loops, each
+/// inter-robot loop once; no robust loss) at the robots' final estimates, each
+/// robot's own keyframes where it left them, and at the optimum. Their ratio
+/// is how far the distributed solve stopped from the optimum.
+struct JointCosts {
+  double run = 0.0;
+  double optimum = 0.0;
+};
+
 /// The bound of the run in folder `run` (outputs of `dcl-slam run`) of the
-/// dataset in folder `dataset`. Throws core::Error naming the file for a
-/// missing or inconsistent output.
-std::vector<RobotBound> computeBound(const std::string& run, const std::string& dataset);
+/// dataset in folder `dataset`, and the joint graph's costs into `costs` when
+/// given. Throws core::Error naming the file for a missing or inconsistent output.
+std::vector<RobotBound> computeBound(const std::string& run, const std::string& dataset,
+                                     JointCosts* costs = nullptr);
 
 /// The mean over the robots of 1 - value / base: the ATE lowered against
 /// `base` (robots without either figure left out).

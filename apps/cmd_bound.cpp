@@ -302,7 +302,8 @@ backend::PoseGraph jointGraph(const std::vector<RobotGraph>& robots, Factors fac
 }
 
 void runBound(const BoundOptions& o) {
-  const std::vector<RobotBound> robots = computeBound(o.run, o.dataset);
+  JointCosts costs;
+  const std::vector<RobotBound> robots = computeBound(o.run, o.dataset, &costs);
   const std::vector<std::pair<const char*, double RobotBound::*>> columns{
       {"odometry", &RobotBound::odometry},
       {"own_loops", &RobotBound::own_loops},
@@ -317,7 +318,11 @@ void runBound(const BoundOptions& o) {
     return std::isnan(value) ? std::string("-") : fmt::format("{:.4f}", value);
   };
   if (o.json) {
-    Json out{{"run", o.run}, {"dataset", o.dataset}, {"robots", Json::array()}};
+    Json out{{"run", o.run},
+             {"dataset", o.dataset},
+             {"cost_run", costs.run},
+             {"cost_optimum", costs.optimum},
+             {"robots", Json::array()}};
     for (const RobotBound& r : robots) {
       Json j{{"name", r.name}};
       for (const auto& [key, field] : columns) j[std::string("ate_") + key] = r.*field;
@@ -363,6 +368,10 @@ void runBound(const BoundOptions& o) {
     for (const auto& [key, field] : joint_columns) fmt::print("{:>12}", cell(r.*field));
     fmt::print("\n");
   }
+  fmt::print("\nJoint graph's chi-square: the run {:.6g}, the optimum {:.6g}", costs.run,
+             costs.optimum);
+  if (costs.optimum > 0.0) fmt::print(" ({:.3f} times)", costs.run / costs.optimum);
+  fmt::print("\n");
 }
 
 /// x y z (m) and roll pitch yaw (rad) as a JSON array.
@@ -425,7 +434,8 @@ void runNoise(const BoundOptions& o) {
 
 }  // namespace
 
-std::vector<RobotBound> computeBound(const std::string& run, const std::string& dataset) {
+std::vector<RobotBound> computeBound(const std::string& run, const std::string& dataset,
+                                     JointCosts* costs) {
   const std::vector<RobotGraph> robots = readRun(run, dataset);
   backend::SolverConfig solver;
   solver.max_iterations = 200;
@@ -444,6 +454,8 @@ std::vector<RobotBound> computeBound(const std::string& run, const std::string& 
   const backend::PoseGraph own_loops = solved(Factors::own_loops);
   const backend::PoseGraph optimum = solved(Factors::joint);
   const backend::PoseGraph exact = solved(Factors::exact);
+  if (costs != nullptr)
+    *costs = {backend::graphCost(jointGraph(robots, Factors::joint)), backend::graphCost(optimum)};
   backend::PoseGraph run_graph;  ///< every robot's own keyframes where the run left them
   for (const RobotGraph& r : robots)
     for (const auto& [key, T] : r.graph.nodes()) run_graph.addNode(key, T);

@@ -16,6 +16,7 @@
 #include <dcl/sim/presets.hpp>
 #include <dcl/sim/preview.hpp>
 #include <dcl/sim/sim_source.hpp>
+#include <dcl/swarm/swarm_run.hpp>
 
 #include "commands.hpp"
 #include "run_swarm.hpp"
@@ -66,7 +67,8 @@ void printTable(const Json& m) {
 void runDemo(const DemoOptions& o, const AppConfig& config) {
   std::filesystem::create_directories(o.out);
   const std::string dataset = simulate(o.out);
-  const Json metrics = runSwarmDataset(dataset, o.out, 0, o.threads, config);
+  const Json metrics =
+      runSwarmDataset(dataset, o.out, 0, o.threads, swarm::SwarmConfig{}.settle, config);
   printTable(metrics);
   fmt::print("outputs in {}: report.html, {}metrics.json, one folder per robot\n", o.out,
              metrics["map_points"].get<std::size_t>() > 0 ? "map.ply (robots coloured), " : "");

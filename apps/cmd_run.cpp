@@ -38,8 +38,9 @@ using Json = nlohmann::ordered_json;
 struct RunOptions {
   std::string dataset;
   std::string out = "out/run";
-  std::size_t max_frames = 0;  ///< scans per robot, 0: all
-  int threads = 0;             ///< 0: every core
+  std::size_t max_frames = 0;                   ///< scans per robot, 0: all
+  int threads = 0;                              ///< 0: every core
+  double settle = swarm::SwarmConfig{}.settle;  ///< s at most after the data while robots optimise
   bool json = false;
 };
 
@@ -237,8 +238,8 @@ void printRunTable(const Json& m, const std::string& out) {
 }
 
 Json runSwarmDataset(const std::string& dataset, const std::string& out, std::size_t max_frames,
-                     int threads, const AppConfig& config) {
-  const RunOptions o{dataset, out, max_frames, threads, false};
+                     int threads, double settle, const AppConfig& config) {
+  const RunOptions o{dataset, out, max_frames, threads, settle, false};
   const io::DatasetSpec spec = io::readDataset(o.dataset);
   std::vector<swarm::SwarmMember> members = membersOf(spec);
   std::vector<core::Trajectory> truths;
@@ -249,6 +250,7 @@ Json runSwarmDataset(const std::string& dataset, const std::string& out, std::si
   sc.radio = config.radio;
   sc.max_frames = o.max_frames;
   sc.threads = o.threads;
+  sc.settle = o.settle;
   sc.map = config.map;
   const swarm::SwarmResult result =
       runWithProgress(std::move(members), sc, "run " + (spec.name.empty() ? o.dataset : spec.name));
@@ -275,10 +277,15 @@ void addRunCommand(CLI::App& app, const AppConfig& config) {
       ->capture_default_str();
   cmd->add_option("--threads", o->threads, "robots processed at once (0: every core)")
       ->capture_default_str();
+  cmd->add_option("--settle", o->settle,
+                  "s of simulated time at most to go on after the data while robots still "
+                  "optimise (large teams' last rounds)")
+      ->capture_default_str();
   cmd->add_flag("--json", o->json, "print metrics.json instead of the table");
   cmd->callback([o, &config] {
     if (o->threads < 0) throw core::Error("--threads must be at least 0");
-    const Json m = runSwarmDataset(o->dataset, o->out, o->max_frames, o->threads, config);
+    const Json m =
+        runSwarmDataset(o->dataset, o->out, o->max_frames, o->threads, o->settle, config);
     if (o->json) return fmt::print("{}\n", m.dump(2));
     printRunTable(m, o->out);
   });

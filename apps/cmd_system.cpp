@@ -27,6 +27,7 @@
 #include <dcl/io/file.hpp>
 #include <dcl/sim/presets.hpp>
 #include <dcl/sim/sim_source.hpp>
+#include <dcl/swarm/swarm_run.hpp>
 
 #include "bound.hpp"
 #include "commands.hpp"
@@ -52,6 +53,7 @@ struct SystemOptions {
   std::string data;  ///< the shared data folder (KITTI ground truth)
   std::size_t max_frames = 0;
   int threads = 0;
+  double settle = swarm::SwarmConfig{}.settle;  ///< s at most after the data while robots optimise
   double range = 0.0;    ///< m, the radio's range (0: unlimited, as in the paper)
   std::string markdown;  ///< where to write the tables as Markdown too
   bool json = false;
@@ -225,7 +227,7 @@ DatasetRun runOne(const std::string& preset, int robots, const std::string& name
   c.radio.range = o.range;
   const auto start = std::chrono::steady_clock::now();
   Json metrics = runSwarmDataset(folder, (fs::path(o.work) / (name + "-run")).string(),
-                                 o.max_frames, o.threads, c);
+                                 o.max_frames, o.threads, o.settle, c);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return {name, std::move(metrics), seconds,
@@ -301,6 +303,10 @@ void addBenchSystemCommand(CLI::App& bench, const AppConfig& config) {
   cmd->add_option("--max-frames", o->max_frames, "scans per robot at most (0: all)")
       ->capture_default_str();
   cmd->add_option("--threads", o->threads, "robots processed at once (0: every core)")
+      ->capture_default_str();
+  cmd->add_option("--settle", o->settle,
+                  "s of simulated time at most each run goes on after its data while robots "
+                  "still optimise")
       ->capture_default_str();
   cmd->add_option("--range", o->range,
                   "m, communication range (0: unlimited, the paper's assumption)")

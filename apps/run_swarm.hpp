@@ -13,10 +13,11 @@
 namespace dcl::apps {
 
 /// Runs every robot of the dataset in `dataset` over the simulated radio
-/// (scans per robot at most `max_frames`, 0: all; `threads` 0: every core),
+/// (scans per robot at most `max_frames`, 0: all; `threads` 0: every core;
+/// on for `settle` s at most after the data while robots still optimise),
 /// writes the outputs into `out` and returns metrics.json.
 nlohmann::ordered_json runSwarmDataset(const std::string& dataset, const std::string& out,
-                                       std::size_t max_frames, int threads,
+                                       std::size_t max_frames, int threads, double settle,
                                        const AppConfig& config);
 
 /// The per-robot table of a run's metrics.

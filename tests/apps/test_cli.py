@@ -330,6 +330,9 @@ class Demo(unittest.TestCase):
                 self.assertGreaterEqual(b["ate_joint_" + key], b["ate_" + key] - 1e-9, key)
         for key in ("own_loops", "run", "optimum", "exact"):
             self.assertIn("mean_ate_lowered", bound["lowered"][key])
+        # Solved from the run's estimates, the optimum costs no more than they do.
+        self.assertGreater(bound["cost_optimum"], 0.0)
+        self.assertLessEqual(bound["cost_optimum"], bound["cost_run"] * (1.0 + 1e-9))
         # A run of another dataset is named, with the robot it lacks.
         other = os.path.join(out, "other")
         os.makedirs(os.path.join(other, "a"))
@@ -1144,6 +1147,15 @@ class Run(unittest.TestCase):
         for name in ("map.ply", "a/map.ply", "b/map.ply", "c/map.ply"):
             self.assertFalse(os.path.exists(os.path.join(out, name)), name)
         self.assertEqual(metrics["robots"][0]["frames"], 20)
+
+    def test_a_negative_settle_is_refused_before_anything_is_written(self):
+        out = os.path.join(self.tmp.name, "unsettled")
+        for value in ("-1", "nan"):
+            code, _, err = run("run", "--dataset", self.dataset, "--out", out, "--max-frames",
+                               "20", "--settle", value, check=False)
+            self.assertEqual(code, 1, value)
+            self.assertIn("settle", err, value)
+            self.assertFalse(os.path.exists(out), value)
 
     def test_one_or_two_threads_give_the_same_run(self):
         self.assertEqual(self.metrics[0], self.metrics[1])
