@@ -52,6 +52,7 @@ robot::RobotConfig robotConfig(const AppConfig& c) {
   r.round_timeout = c.robot.round_timeout;
   r.announce_period = c.robot.announce_period;
   r.solve_alone = c.robot.solve_alone;
+  r.hold_absent = c.robot.hold_absent;
   return r;
 }
 

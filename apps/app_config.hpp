@@ -75,6 +75,8 @@ struct RobotSection {
   double loop_sigma_translation = 0.02;  ///< m, added to every verified loop's covariance
   double loop_sigma_rotation = 0.0035;   ///< rad, likewise
   bool solve_alone = true;  ///< with no one to optimise with, solve against the last round's values
+  bool hold_absent =
+      true;  ///< in a round, hold the loops to absent neighbours where they were left
 
   template <class Visitor>
   void visit(Visitor& v) {
@@ -95,6 +97,9 @@ struct RobotSection {
     v.field("solve_alone", solve_alone,
             "with no one in range to optimise with, solve the own graph against the "
             "neighbours' poses as the last round left them");
+    v.field("hold_absent", hold_absent,
+            "in a round, hold the loops to neighbours out of range where the last rounds "
+            "left them (the swarm's maps stay aligned)");
   }
 };
 

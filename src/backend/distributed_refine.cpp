@@ -74,9 +74,10 @@ struct RefineAgent::Impl {
   std::vector<Factor> pending;      // inter-robot factors whose neighbour pose has no value yet
   std::map<core::RobotId, std::set<core::PoseKey>> separators;
   std::set<core::PoseKey> neighbour_poses;
-  std::set<core::PoseKey> held;  // own poses that hold the gauge
-  PoseMap estimates;             // latest: this round's after step()
-  PoseMap kept;                  // the last kept round's
+  std::set<core::PoseKey> held;             // own poses that hold the gauge
+  std::set<core::PoseKey> held_neighbours;  // neighbours' poses fixed in `local`: never sent for
+  PoseMap estimates;                        // latest: this round's after step()
+  PoseMap kept;                             // the last kept round's
   PoseMap kept_before;
   PoseMap neighbours_kept;  // neighbours' separators as of the last kept round
   PoseMap neighbours_kept_before;
@@ -88,10 +89,12 @@ struct RefineAgent::Impl {
     validate(config);
     for (const auto& [key, pose] : local.nodes()) {
       if (key.robot == robot) estimates.emplace(key, pose);
+      if (key.robot != robot && local.isFixed(key)) held_neighbours.insert(key);
     }
     for (const Factor& f : local.factors()) addFactor(f);
     for (const auto& [key, pose] : local.nodes()) {
-      if (own(key) || neighbour_poses.contains(key)) problem.setPose(key, pose);
+      if (own(key) || neighbour_poses.contains(key) || held_neighbours.contains(key))
+        problem.setPose(key, pose);
       if (neighbour_poses.contains(key)) neighbours_kept.emplace(key, pose);
     }
     chooseGauge(local);
@@ -111,8 +114,10 @@ struct RefineAgent::Impl {
     if (from_own != to_own) {
       const core::PoseKey& mine = from_own ? f.from : f.to;
       const core::PoseKey& theirs = from_own ? f.to : f.from;
-      separators[theirs.robot].insert(mine);
-      neighbour_poses.insert(theirs);
+      if (!held_neighbours.contains(theirs)) {
+        separators[theirs.robot].insert(mine);
+        neighbour_poses.insert(theirs);
+      }
     }
     pending.push_back(f);
   }
@@ -136,7 +141,7 @@ struct RefineAgent::Impl {
     for (const core::PoseKey& key : local.fixedNodes()) {
       if (own(key) && estimates.contains(key)) held.insert(key);
     }
-    if (!held.empty() || !neighbour_poses.empty()) return;
+    if (!held.empty() || !neighbour_poses.empty() || !held_neighbours.empty()) return;
     std::set<core::PoseKey> touched;
     for (const Factor& f : pending) touched.insert({f.from, f.to});
     if (!touched.empty()) held.insert(*touched.begin());
@@ -191,7 +196,8 @@ struct RefineAgent::Impl {
   [[nodiscard]] double ownedCost() const {
     double cost = 0.0;
     for (const Factor& f : active) {
-      if (std::min(f.from.robot, f.to.robot) != robot) continue;
+      const bool held_end = held_neighbours.contains(f.from) || held_neighbours.contains(f.to);
+      if (std::min(f.from.robot, f.to.robot) != robot && !held_end) continue;
       const core::Vector6d r = factorResidual(f, problem.pose(f.from), problem.pose(f.to));
       cost += r.dot(f.information * r);
     }

@@ -694,21 +694,7 @@ struct RobotNode::Impl {
     last_solved_alone = now;
     solved_own_loops = mapper.loops().size();
     backend::PoseGraph g = ownGraph();
-    std::size_t held = 0;
-    for (const auto& [robot, n] : neighbours) {
-      for (const auto& [id, f] : n.loops) {
-        const core::PoseKey& other = f.from.robot == self ? f.to : f.from;
-        const auto anchor = anchors.find(other);
-        if (!n.accepted.contains(id) || !anchored_loops.contains(id) || anchor == anchors.end())
-          continue;
-        if (!g.hasNode(other)) {
-          g.addNode(other, anchor->second);
-          g.fix(other);
-        }
-        g.addFactor(f);
-        ++held;
-      }
-    }
+    const std::size_t held = addHeldLoops(g, {self});
     if (held == 0) return;
     backend::SolverConfig solver;
     solver.threads = 1;
@@ -725,6 +711,29 @@ struct RobotNode::Impl {
     for (const auto& [key, T] : g.nodes())
       if (key.robot == self) optimised[key.keyframe] = T;
     count("solved_alone");
+  }
+
+  /// Adds to `g` the accepted inter-robot loops of the rounds in the current
+  /// frame to robots outside `members`, their other ends held (fixed) where
+  /// those rounds left them; returns how many.
+  std::size_t addHeldLoops(backend::PoseGraph& g, const std::set<core::RobotId>& members) const {
+    std::size_t held = 0;
+    for (const auto& [robot, n] : neighbours) {
+      if (members.contains(robot)) continue;
+      for (const auto& [id, f] : n.loops) {
+        const core::PoseKey& other = f.from.robot == self ? f.to : f.from;
+        const auto anchor = anchors.find(other);
+        if (!n.accepted.contains(id) || !anchored_loops.contains(id) || anchor == anchors.end())
+          continue;
+        if (!g.hasNode(other)) {
+          g.addNode(other, anchor->second);
+          g.fix(other);
+        }
+        g.addFactor(f);
+        ++held;
+      }
+    }
+    return held;
   }
 
   // ---- the refinement within a round ----------------------------------------
@@ -753,6 +762,13 @@ struct RobotNode::Impl {
     }
     for (const backend::Factor& f : round->graph.factors()) local.addFactor(f);
     if (self == *round->group.begin() && local.size() > 0) local.fix(local.nodes().begin()->first);
+    // Loops to robots out of the group, held where the rounds in this frame
+    // left those robots: what this round moves stays where they placed their
+    // maps, so the swarm's maps still agree when they cannot hear of it.
+    if (config.hold_absent && frame && round->origin.frame == frame) {
+      if (const std::size_t held = addHeldLoops(local, round->group); held > 0)
+        count("refine_held_loops", static_cast<double>(held));
+    }
     round->refine.emplace(Refinement{backend::RefineAgent(self, local, config.refine),
                                      std::nullopt,
                                      0,

@@ -403,6 +403,52 @@ TEST(RefineAgent, AFactorToAnUnknownNeighbourPoseWaitsForItsValue) {
   EXPECT_LE(second.cost_after, second.cost_before);
 }
 
+TEST(RefineAgent, HeldNeighbourPosesStayPutAndTheirFactorsAreOwned) {
+  // Robot b of the two-robot example, with a's separators held where the
+  // joint optimum puts them (fixed in b's local graph): a robot whose
+  // neighbour is out of the group. b's block is then the whole problem left,
+  // and its solve is the joint optimum's b.
+  const PoseGraph graph = mapperExample(2);
+  const PoseGraph optimum = centralizedOptimum(graph);
+  const core::RobotId b(1);
+  PoseGraph local = partitionByRobot(graph).at(b);
+  std::set<core::PoseKey> held;
+  for (const Factor& f : local.factors()) {
+    for (const core::PoseKey& end : {f.from, f.to}) {
+      if (end.robot == b || !held.insert(end).second) continue;
+      local.addNode(end, optimum.estimate(end));
+      local.fix(end);
+    }
+  }
+  ASSERT_FALSE(held.empty());
+  RefineAgent agent(b, local, {});
+  EXPECT_TRUE(agent.neighbours().empty());
+  EXPECT_TRUE(agent.neighbourPoses().empty());
+  agent.beginRound();
+  const RefineStep step = agent.step();
+  EXPECT_TRUE(step.outgoing.empty());
+  EXPECT_LT(step.cost_after, step.cost_before);
+  agent.endRound(true);
+  double worst = 0.0;
+  for (const auto& [k, T] : agent.estimates())
+    worst = std::max(worst, core::logSE3(T.inverse() * optimum.estimate(k)).norm());
+  EXPECT_LT(worst, 1e-4);
+
+  // b owns every factor, a's id being lower: its share is its block's whole cost.
+  PoseGraph solved = local;
+  for (const auto& [k, T] : agent.estimates()) solved.setEstimate(k, T);
+  EXPECT_NEAR(agent.ownedCost(), graphCost(solved), 1e-9 * graphCost(solved));
+
+  // Values sent for a held pose are not taken in.
+  std::map<core::PoseKey, Eigen::Isometry3d> moved;
+  for (const core::PoseKey& k : held)
+    moved.emplace(k, optimum.estimate(k) * core::expSE3(core::Vector6d::Constant(0.1)));
+  agent.beginRound();
+  agent.receive(moved);
+  const RefineStep again = agent.step();
+  EXPECT_NEAR(again.cost_before, graphCost(solved), 1e-9 * graphCost(solved) + 1e-12);
+}
+
 TEST(CentralizedInitialisation, ChordalStartReachesTheSameOptimumFromCloser) {
   const PoseGraph start = fromG2o(io::readG2o(dataPath("3d/smallGrid3D.g2o")));
   PoseGraph as_is = start;

@@ -39,18 +39,20 @@ inline sim::Route thereAndBack(const sim::Route& route, std::size_t first, std::
 
 /// The dataset, written to a temporary folder for the life of the object.
 /// `back`: both robots reverse down the street after `frames` frames, back to
-/// where they began.
+/// where they began. `third`: a robot c drives between them, 2 s behind a.
 struct Convoy {
   std::filesystem::path folder;
   io::DatasetSpec spec;
 
-  explicit Convoy(const std::string& tag, std::size_t frames = 160, bool back = false) {
+  explicit Convoy(const std::string& tag, std::size_t frames = 160, bool back = false,
+                  bool third = false) {
     folder = std::filesystem::temp_directory_path() /
              ("dcl_convoy_" + tag + "_" + std::to_string(::getpid()));
     sim::Preset preset = sim::makePreset("demo");
     const sim::Route street = preset.routes.at(0);
     const auto route = back ? thereAndBack : sliceRoute;
     preset.routes = {route(street, 40, frames, "a"), route(street, 0, frames, "b")};
+    if (third) preset.routes.push_back(route(street, 20, frames, "c"));
     spec = sim::writeSimDataset(folder.string(), preset);
   }
   ~Convoy() { std::filesystem::remove_all(folder); }

@@ -38,10 +38,12 @@ struct SwarmRun {
 
 /// Plays the convoy's scans, then `drain` s more of ticks for the rounds to
 /// end, and on while a robot has not settled (60 s at most), as a swarm run
-/// does. From frame `part` on the robots are far out of each other's range.
+/// does. From frame `part` on the robots are far out of each other's range;
+/// robot r from frame leave[r] on, where `leave` names it.
 SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_config = {},
                double drain = 10.0, const RobotConfig& config = {},
-               std::size_t part = std::numeric_limits<std::size_t>::max()) {
+               std::size_t part = std::numeric_limits<std::size_t>::max(),
+               const std::vector<std::size_t>& leave = {}) {
   if (std::getenv("DCL_TEST_DEBUG")) spdlog::set_level(spdlog::level::debug);
   SwarmRun run;
   run.radio = std::make_unique<comm::SimRadio>(radio_config);
@@ -64,8 +66,9 @@ SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_con
     t = stamp;
     for (std::size_t r = 0; r < scans.size(); ++r) {  // links follow the true positions
       const core::RobotId id(static_cast<std::uint8_t>(r));
-      run.radio->setPosition(id, i < part ? run.ground_truth[r].pose(i).translation()
-                                          : Eigen::Vector3d(1e4 * static_cast<double>(r), 0, 0));
+      const bool here = i < part && (r >= leave.size() || i < leave[r]);
+      run.radio->setPosition(id, here ? run.ground_truth[r].pose(i).translation()
+                                      : Eigen::Vector3d(1e4 * static_cast<double>(r + 1), 0, 0));
     }
     run.radio->advanceTo(t);
     for (std::size_t r = 0; r < scans.size(); ++r) {
@@ -330,6 +333,45 @@ TEST_P(RobotNodeLossy, WithAThirdOfMessagesLostBothStillEndInOneFrame) {
 }
 
 INSTANTIATE_TEST_SUITE_P(RadioSeeds, RobotNodeLossy, ::testing::Values(2U, 11U, 13U));
+
+/// The chi-square of the accepted loops between robots r and s, each end at
+/// its own robot's estimate: how well the two robots' maps agree where they met.
+double loopCost(const SwarmRun& run, std::size_t r, std::size_t s) {
+  const RobotNode& a = *run.nodes[r];
+  const RobotNode& b = *run.nodes[s];
+  const auto at = [&](const core::PoseKey& key) {
+    return key.robot == a.id() ? a.estimate(key.keyframe) : b.estimate(key.keyframe);
+  };
+  double cost = 0.0;
+  for (const InterLoop& loop : a.interLoops()) {
+    const backend::Factor& f = loop.factor;
+    if (!loop.accepted || (f.from.robot != b.id() && f.to.robot != b.id())) continue;
+    const core::Vector6d e = backend::factorResidual(f, at(f.from), at(f.to));
+    cost += e.dot(f.information * e);
+  }
+  return cost;
+}
+
+TEST(RobotNode, RoundsHoldTheLoopsOfARobotThatLeft) {
+  // Three robots drive the street together; b leaves early, a and c go on
+  // closing loops and optimising. a's rounds with c hold its loops with b
+  // where the rounds with b left b, so a's and b's maps still agree where
+  // they met; without, a's estimates move away from the b that cannot follow.
+  static const test::Convoy three("absent", 260, false, true);
+  RobotConfig hold;
+  hold.optimise_period = 5.0;  // a round every 5 s at most: three before b leaves, two after
+  RobotConfig loose = hold;
+  loose.hold_absent = false;
+  const std::vector<std::size_t> b_leaves{260, 180, 260};
+  const SwarmRun held = drive(three, {}, 10.0, hold, 260, b_leaves);
+  const SwarmRun free = drive(three, {}, 10.0, loose, 260, b_leaves);
+  const double with = loopCost(held, 0, 1);
+  const double without = loopCost(free, 0, 1);
+  std::printf("a-b loops' cost: %.6g held, %.6g not\n", with, without);
+  EXPECT_GT(held.nodes[0]->counters().at("refine_held_loops"), 0.0);
+  EXPECT_FALSE(free.nodes[0]->counters().contains("refine_held_loops"));
+  EXPECT_LT(with, 0.5 * without);
+}
 
 TEST(RobotNode, CountsEveryStageOfTheExchange) {
   const SwarmRun& run = defaultRun();

@@ -110,6 +110,9 @@ class RefineAgent {
   /// robot) with their estimates, and the factors touching them. Nodes of
   /// other robots in `local` are the first values of the neighbours'
   /// separators; a factor to a neighbour pose with no value yet waits for one.
+  /// A neighbour's node fixed in `local` is held where it is: a neighbour out
+  /// of the group, where an earlier round left it. Nothing is sent for it or
+  /// taken in, and this agent owns the factors to it (ownedCost).
   /// Own nodes fixed in `local` stay fixed; with none fixed and no inter-robot
   /// factor, the lowest own node a factor touches is (the block alone has a
   /// free gauge). Factors joining a node to itself are left out (a constant).
@@ -146,8 +149,9 @@ class RefineAgent {
   [[nodiscard]] const std::map<core::PoseKey, Eigen::Isometry3d>& neighbourValues() const;
 
   /// This robot's share of the graph's cost: the chi-square of the factors it
-  /// owns (both ends its own, or an inter-robot factor whose other robot has a
-  /// higher id) at its current estimates and the neighbours' latest values.
+  /// owns (both ends its own, an inter-robot factor whose other robot has a
+  /// higher id, or one to a held neighbour pose) at its current estimates and
+  /// the neighbours' latest values.
   /// Every factor has exactly one owner, so the shares of a group's robots sum
   /// to the whole graph's cost: all a group needs to share for RefineSchedule.
   [[nodiscard]] double ownedCost() const;

@@ -126,6 +126,12 @@ struct RobotConfig {
   /// Without it, loops closed after a robot's last round never reach the
   /// keyframes that round placed.
   bool solve_alone = true;
+  /// In a round's refinement, hold the accepted loops to neighbours out of the
+  /// group (out of range, or gone) where the rounds in this frame left those
+  /// neighbours: what the round moves stays where they placed their maps,
+  /// which they cannot hear of. Without it a round optimises its members'
+  /// loops only, and the swarm's maps part where the absent robots met it.
+  bool hold_absent = true;
 };
 
 /// An inter-robot loop this robot knows of, and what became of it.
