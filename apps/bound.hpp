@@ -31,9 +31,10 @@ struct RobotBound {
   double run = 0.0;        ///< the run's final estimate
   double optimum = 0.0;    ///< the run's joint graph, solved centrally
   double exact = 0.0;      ///< the same with every inter-robot loop exact
-  /// The same three under one SE(3) alignment for all robots together (the
-  /// merged map's consistency, the run's `ate_rmse_joint`): NaN when the robots
-  /// share too few poses with the ground truth to align them.
+  /// The same three under one SE(3) alignment for all robots its loops join
+  /// it to, through any others, together (the merged map's consistency, the
+  /// run's `ate_rmse_joint`): NaN when they share too few poses with the
+  /// ground truth to align them.
   double run_joint = 0.0;
   double optimum_joint = 0.0;
   double exact_joint = 0.0;

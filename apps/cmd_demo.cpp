@@ -60,7 +60,8 @@ void printTable(const Json& m) {
                static_cast<double>(r["bytes_sent"].get<std::size_t>()) / 1000.0);
   }
   fmt::print(
-      "ATE in m (keyframes, SE(3)-aligned per robot; joint: one alignment for all robots); "
+      "ATE in m (keyframes, SE(3)-aligned per robot; joint: one alignment for all robots of a "
+      "frame); "
       "loops: intra + inter-robot\n");
 }
 

@@ -291,6 +291,7 @@ struct RobotPlayer {
     for (const robot::InterLoop& loop : node.interLoops())
       r.inter_loops.push_back({loop.factor.from, loop.factor.to, loop.accepted});
     r.messenger = messengerJson(node.messenger().stats());
+    if (const std::optional<core::RobotId> frame = node.frame()) r.frame = frame->value();
     return out;
   }
 };

@@ -84,6 +84,8 @@ eval::RunSummary summaryOf(const io::DatasetSpec& spec, const swarm::SwarmResult
     eval::RobotRun run;
     run.name = m.name;
     trajectories(m, id, run.estimate, run.odometry);
+    // A robot whose frame is unknown (a round's initiator did not say) is in one of its own.
+    run.frame = m.frame ? result.robots.at(m.frame->value()).name : "(unknown: " + m.name + ")";
     run.ground_truth = truths[r];
     run.frames = m.frames;
     run.keyframes = m.keyframes.size();

@@ -34,6 +34,7 @@
 #include <dcl/eval/run_report.hpp>
 #include <dcl/io/dataset.hpp>
 #include <dcl/io/file.hpp>
+#include <dcl/robot/frames.hpp>
 
 #include "commands.hpp"
 #include "process.hpp"
@@ -331,6 +332,10 @@ eval::RobotRun robotRun(RobotOutputs& r, const io::DatasetSpec& spec) {
   run.name = r.report.name;
   run.estimate = std::move(r.estimate);
   run.odometry = std::move(r.odometry);
+  // A robot whose frame is unknown (a round's initiator did not say) is in one of its own.
+  run.frame = r.report.frame && *r.report.frame < spec.robots.size()
+                  ? spec.robots[*r.report.frame].name
+                  : "(unknown: " + r.report.name + ")";
   if (!spec.robots[r.report.robot].ground_truth.empty())
     run.ground_truth = io::readGroundTruth(spec, r.report.robot);
   run.frames = r.report.frames;
@@ -345,6 +350,36 @@ eval::RobotRun robotRun(RobotOutputs& r, const io::DatasetSpec& spec) {
   return run;
 }
 
+/// Every robot's estimates moved into the lowest frame the accepted loops
+/// between frames join its own to (robot/frames.hpp); each robot's `frame`
+/// then names that frame.
+void joinFrames(std::vector<RobotOutputs>& robots) {
+  std::vector<robot::RobotEstimates> estimates;
+  std::vector<backend::Factor> loops;
+  for (const RobotOutputs& r : robots) {
+    const core::RobotId id(r.report.robot);
+    robot::RobotEstimates e{id, std::nullopt, r.estimate.poses()};
+    if (r.report.frame) e.frame = core::RobotId(*r.report.frame);
+    estimates.push_back(std::move(e));
+    for (const backend::Factor& f : r.graph.factors()) {  // each loop once: the lower robot's
+      if (f.from.robot != f.to.robot && std::min(f.from.robot, f.to.robot) == id)
+        loops.push_back(f);
+    }
+  }
+  const std::map<core::RobotId, robot::FramePlacement> placed =
+      robot::joinFrames(robot::frameLinks(estimates, loops));
+  for (RobotOutputs& r : robots) {
+    if (!r.report.frame) continue;
+    const auto it = placed.find(core::RobotId(*r.report.frame));
+    if (it == placed.end() || it->second.root.value() == *r.report.frame) continue;
+    core::Trajectory moved;
+    for (std::size_t k = 0; k < r.estimate.size(); ++k)
+      moved.push_back(r.estimate.stamp(k), it->second.T_root_frame * r.estimate.pose(k));
+    r.estimate = std::move(moved);
+    r.report.frame = it->second.root.value();
+  }
+}
+
 SwarmRun readSwarm(const io::DatasetSpec& spec, const std::vector<std::size_t>& robots,
                    const std::string& out) {
   std::vector<RobotOutputs> outputs;
@@ -353,6 +388,7 @@ SwarmRun readSwarm(const io::DatasetSpec& spec, const std::vector<std::size_t>& 
     outputs.push_back(readRobotOutputs(out + "/" + spec.robots[r].name));
     position_of[core::RobotId(static_cast<std::uint8_t>(r))] = outputs.size() - 1;
   }
+  joinFrames(outputs);
   SwarmRun run;
   run.summary.dataset = spec.name.empty() ? spec.folder : spec.name;
   run.summary.loops = loopsOf(outputs, position_of);
@@ -407,7 +443,8 @@ void printTable(const Json& m, const std::string& out) {
                r["max_lag_s"].get<double>());
   }
   fmt::print(
-      "ATE in m (keyframes, SE(3)-aligned per robot; joint: one alignment for all robots); "
+      "ATE in m (keyframes, SE(3)-aligned per robot; joint: one alignment for all robots of a "
+      "frame); "
       "loops: intra + inter kept/found; max lag: s of swarm time a scan was played late\n");
   fmt::print(
       "{} s of swarm time at rate {} in {:.1f} s; outputs in {} (metrics.json, "

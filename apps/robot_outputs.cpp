@@ -1,7 +1,9 @@
 #include "robot_outputs.hpp"
 
+#include <algorithm>
 #include <array>
 #include <chrono>
+#include <cmath>
 #include <cstdint>
 #include <exception>
 #include <filesystem>
@@ -83,6 +85,8 @@ RobotReport reportOf(const Json& j, const std::string& path) {
   r.counters = field<std::map<std::string, double>>(j, "counters", path);
   r.inter_loops = loopsOf(field<Json>(j, "inter_loops", path), path);
   r.messenger = field<Json>(j, "messenger", path);
+  if (const Json frame = field<Json>(j, "frame", path); !frame.is_null())
+    r.frame = field<std::uint8_t>(j, "frame", path);
   if (!(r.meter_interval > 0.0))
     throw core::FileError({.path = path, .field = "meter_interval_s"}, "must be positive");
   return r;
@@ -126,6 +130,7 @@ Json toJson(const RobotReport& r) {
           {"sent_over_time", r.sent_over_time},
           {"counters", r.counters},
           {"inter_loops", loops},
+          {"frame", r.frame ? Json(*r.frame) : Json(nullptr)},
           {"messenger", r.messenger}};
 }
 
@@ -161,6 +166,7 @@ RobotOutputs readRobotOutputs(const std::string& folder) {
   if (o.report.keyframes == 0) return o;  // the pose files have no line to read
   o.estimate = io::readTumPoses(folder + "/trajectory.tum");
   o.odometry = io::readTumPoses(folder + "/odometry.tum");
+  o.graph = backend::fromG2o(io::readG2o(folder + "/graph.g2o"));
   if (o.estimate.size() != o.report.keyframes || o.odometry.size() != o.report.keyframes)
     throw core::FileError({.path = folder + "/trajectory.tum"},
                           "holds " + std::to_string(o.estimate.size()) + " poses, odometry.tum " +
@@ -190,6 +196,7 @@ nlohmann::ordered_json robotMetricsJson(const eval::RobotRun& run, const eval::R
           {"ate_rmse", optional(m.ate_rmse)},
           {"ate_rmse_odometry_only", optional(m.ate_rmse_odometry_only)},
           {"ate_rmse_joint", optional(m.ate_rmse_joint)},
+          {"frame", run.frame},
           {"are_rmse_deg", optional(m.are_rmse_deg)},
           {"are_rmse_deg_odometry_only", optional(m.are_rmse_deg_odometry_only)},
           {"bytes_sent", run.bytes_sent},

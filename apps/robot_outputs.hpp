@@ -8,6 +8,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -69,6 +70,10 @@ struct RobotReport {
     bool accepted = false;
   };
   std::vector<Loop> inter_loops;
+  /// The robot whose frame trajectory.tum and graph.g2o are in (robot's
+  /// frames.hpp); none when unknown. `dcl-slam swarm` puts every robot in
+  /// the lowest frame the loops between frames join its own to.
+  std::optional<std::uint8_t> frame;
   /// The Messenger's statistics (messengerJson), for diagnostics only.
   nlohmann::ordered_json messenger = nlohmann::ordered_json::object();
 };
@@ -84,7 +89,7 @@ nlohmann::ordered_json messengerJson(const comm::MessengerStats& stats);
 struct RobotOutputs {
   core::Trajectory estimate;
   core::Trajectory odometry;
-  backend::PoseGraph graph;  ///< written only; not read back
+  backend::PoseGraph graph;  ///< the final graph: own keyframes, factors, neighbours' ends
   RobotReport report;
 };
 

@@ -34,7 +34,7 @@ constexpr std::size_t kMinPairs = 3;
 struct RunPairs {
   std::vector<std::optional<Association>> estimate;
   std::vector<std::optional<Association>> odometry;
-  std::optional<Sim3> S_gt_common;
+  std::vector<std::optional<Sim3>> S_gt_common;  // per robot, its frame's
 };
 
 // Runs `f`, prefixing any core::Error with the robot it was about.
@@ -56,12 +56,15 @@ std::optional<Association> pairsOf(const RobotRun& robot, const core::Trajectory
   return pairs;
 }
 
-// The SE(3) alignment fitted on every robot's pairs together: the full system claims one
-// common frame, so one rigid motion must fit them all.
-std::optional<Sim3> commonAlignment(const std::vector<std::optional<Association>>& robots) {
+// The SE(3) alignment fitted on the pairs of all robots in `frame` together: the full system
+// claims one common frame, so one rigid motion must fit them all.
+std::optional<Sim3> commonAlignment(const RunSummary& run,
+                                    const std::vector<std::optional<Association>>& robots,
+                                    const std::string& frame) {
   Association all;
-  for (const auto& pairs : robots) {
-    if (!pairs) continue;
+  for (std::size_t r = 0; r < robots.size(); ++r) {
+    const std::optional<Association>& pairs = robots[r];
+    if (!pairs || run.robots[r].frame != frame) continue;
     for (std::size_t i = 0; i < pairs->size(); ++i) {
       all.estimate.push_back(pairs->estimate.stamp(i), pairs->estimate.pose(i));
       all.ground_truth.push_back(pairs->ground_truth.stamp(i), pairs->ground_truth.pose(i));
@@ -71,7 +74,8 @@ std::optional<Sim3> commonAlignment(const std::vector<std::optional<Association>
   try {
     return computeAlignment(all, Alignment::se3);
   } catch (const core::Error& e) {
-    throw core::Error(fmt::format("run report: joint alignment of all robots: {}", e.what()));
+    throw core::Error(fmt::format("run report: joint alignment of the robots{}: {}",
+                                  frame.empty() ? "" : " in frame '" + frame + "'", e.what()));
   }
 }
 
@@ -81,7 +85,12 @@ RunPairs pairRun(const RunSummary& run) {
     out.estimate.push_back(pairsOf(robot, robot.estimate, "full-system estimate"));
     out.odometry.push_back(pairsOf(robot, robot.odometry, "odometry"));
   }
-  out.S_gt_common = commonAlignment(out.estimate);
+  std::map<std::string, std::optional<Sim3>> by_frame;
+  for (const RobotRun& robot : run.robots) {
+    if (!by_frame.contains(robot.frame))
+      by_frame[robot.frame] = commonAlignment(run, out.estimate, robot.frame);
+    out.S_gt_common.push_back(by_frame.at(robot.frame));
+  }
   return out;
 }
 
@@ -110,9 +119,8 @@ RobotMetrics robotMetrics(const RunSummary& run, const RunPairs& pairs, std::siz
   m.receive_kBps = kiloBytesPerSecond(robot.bytes_received, run.duration);
   if (pairs.estimate[i]) {
     std::tie(m.ate_rmse, m.are_rmse_deg) = perRobotAte(robot, *pairs.estimate[i], "estimate");
-    if (pairs.S_gt_common) {
-      m.ate_rmse_joint =
-          computeAte(*pairs.estimate[i], *pairs.S_gt_common, Alignment::se3).translation_m.rmse;
+    if (const std::optional<Sim3>& S = pairs.S_gt_common[i]) {
+      m.ate_rmse_joint = computeAte(*pairs.estimate[i], *S, Alignment::se3).translation_m.rmse;
     }
   }
   if (pairs.odometry[i]) {
@@ -367,18 +375,19 @@ Line xy(const core::Trajectory& trajectory, const Sim3& S) {
 }
 
 TopView topView(const RunSummary& run, const RunPairs& pairs) {
-  const Sim3 S_common = pairs.S_gt_common.value_or(Sim3{});
+  const auto S_common = [&](std::size_t i) { return pairs.S_gt_common[i].value_or(Sim3{}); };
   TopView view;
   for (std::size_t i = 0; i < run.robots.size(); ++i) {
     const RobotRun& robot = run.robots[i];
     const Sim3 S_odometry =
         pairs.odometry[i] ? computeAlignment(*pairs.odometry[i], Alignment::se3) : Sim3{};
     view.ground_truth.push_back(xy(robot.ground_truth, Sim3{}));
-    view.estimate.push_back(xy(robot.estimate, S_common));
+    view.estimate.push_back(xy(robot.estimate, S_common(i)));
     view.odometry.push_back(xy(robot.odometry, S_odometry));
   }
   for (const RunLoop& loop : run.loops) {
-    const Eigen::Vector3d a = S_common * loop.p_a, b = S_common * loop.p_b;
+    const Eigen::Vector3d a = S_common(loop.robot_a) * loop.p_a;
+    const Eigen::Vector3d b = S_common(loop.robot_b) * loop.p_b;
     view.loops.push_back({Line{Point(a.x(), a.y()), Point(b.x(), b.y())}, loop.accepted});
   }
   return view;
@@ -424,9 +433,12 @@ std::string trajectoryLegend(const RunSummary& run, double x, double y) {
 }
 
 std::string trajectoryCaption(const RunPairs& pairs) {
-  return pairs.S_gt_common
+  const bool aligned = std::any_of(pairs.S_gt_common.begin(), pairs.S_gt_common.end(),
+                                   [](const std::optional<Sim3>& S) { return S.has_value(); });
+  return aligned
              ? "<p>Ground truth (grey); the full system aligned to it by one rigid motion for all "
-               "robots; the odometry alone (dashed) aligned robot by robot; inter-robot loops "
+               "robots in one frame; the odometry alone (dashed) aligned robot by robot; "
+               "inter-robot loops "
                "accepted (green) and rejected (red).</p>\n"
              : "<p>Not aligned to ground truth (there is none, or too few keyframes): the full "
                "system in its common frame, the odometry alone (dashed) in each robot's own "

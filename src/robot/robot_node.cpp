@@ -1060,6 +1060,10 @@ backend::PoseGraph RobotNode::graph() const {
   return g;
 }
 
+std::optional<core::RobotId> RobotNode::frame() const {
+  return impl_->frame;
+}
+
 bool RobotNode::settled() const {
   const Impl& i = *impl_;
   if (i.round || i.last_round_capped) return false;

@@ -7,6 +7,7 @@
 #include <tbb/task_arena.h>
 
 #include <dcl/core/error.hpp>
+#include <dcl/robot/frames.hpp>
 #include <dcl/swarm/swarm_run.hpp>
 
 namespace dcl::swarm {
@@ -120,6 +121,38 @@ std::map<comm::MessageKind, std::vector<std::size_t>> sentOverTime(const comm::S
   return bins;
 }
 
+/// Every robot's estimates moved into the lowest frame the accepted loops
+/// between frames join its own to (robot/frames.hpp).
+void joinFrames(std::vector<MemberResult>& robots) {
+  std::vector<robot::RobotEstimates> estimates;
+  std::vector<backend::Factor> loops;
+  for (std::size_t r = 0; r < robots.size(); ++r) {
+    const MemberResult& m = robots[r];
+    const core::RobotId id(static_cast<std::uint8_t>(r));
+    robot::RobotEstimates e{id, m.frame, {}};
+    for (const core::Keyframe& k : m.keyframes) {
+      const core::PoseKey key{id, k.id};
+      e.keyframes.push_back(m.graph.hasNode(key) ? m.graph.estimate(key) : k.T_odom_keyframe);
+    }
+    estimates.push_back(std::move(e));
+    for (const robot::InterLoop& loop : m.inter_loops) {  // each once: from the lower robot's list
+      if (loop.accepted && std::min(loop.factor.from.robot, loop.factor.to.robot) == id)
+        loops.push_back(loop.factor);
+    }
+  }
+  const std::vector<robot::FrameLink> links = robot::frameLinks(estimates, loops);
+  const std::map<core::RobotId, robot::FramePlacement> placed = robot::joinFrames(links);
+  for (MemberResult& m : robots) {
+    const auto it = m.frame ? placed.find(*m.frame) : placed.end();
+    if (it == placed.end() || it->second.root == *m.frame) continue;
+    const Eigen::Isometry3d& T_root_frame = it->second.T_root_frame;
+    std::vector<std::pair<core::PoseKey, Eigen::Isometry3d>> moved;
+    for (const auto& [key, T] : m.graph.nodes()) moved.emplace_back(key, T_root_frame * T);
+    for (const auto& [key, T] : moved) m.graph.setEstimate(key, T);
+    m.frame = it->second.root;
+  }
+}
+
 MemberResult resultOf(Member& m, const comm::SimRadio& radio, core::RobotId id, double interval) {
   MemberResult r;
   r.name = m.spec.name;
@@ -131,6 +164,7 @@ MemberResult resultOf(Member& m, const comm::SimRadio& radio, core::RobotId id, 
         {k.robot, k.id, k.stamp, k.T_odom_keyframe, k.T_previous_keyframe, k.covariance, {}});
   }
   r.graph = m.node->graph();
+  r.frame = m.node->frame();
   r.inter_loops = m.node->interLoops();
   r.counters = m.node->counters();
   r.traffic = radio.traffic(id);
@@ -214,6 +248,7 @@ SwarmResult runSwarm(std::vector<SwarmMember> members, const SwarmConfig& config
                                      config.radio.meter_interval));
     robots[r].node.reset();  // its keyframe clouds go before the next robot's results come
   }
+  joinFrames(result.robots);
   return result;
 }
 

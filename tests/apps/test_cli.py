@@ -447,6 +447,7 @@ class Demo(unittest.TestCase):
             # Every robot took part in a finished optimisation round: one frame for all.
             for r in robots:
                 self.assertGreater(r["counters"].get("dgs_rounds", 0), 0, r["name"])
+                self.assertEqual(r["frame"], "a", r["name"])
                 self.assertLess(r["ate_rmse_joint"], 0.5, r["name"])
             for name in ("report.html", "preview_world.png", "dataset/dataset.yaml",
                          "a/trajectory.tum", "b/graph.g2o", "c/odometry.tum"):

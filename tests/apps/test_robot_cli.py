@@ -139,6 +139,9 @@ class Swarm(unittest.TestCase):
             self.assertFalse(report["interrupted"])
             self.assertEqual(report["frames"], self.FRAMES)
             self.assertEqual(report["swarm"], self.metrics["swarm"])
+            # Each robot's files are in the frame its rounds left it in; robot.json
+            # says which robot's odometry frame that is.
+            self.assertIn(report["frame"], (0, 1, 2))
 
     def test_every_robot_is_accurate_and_hears_its_peers(self):
         robots = self.metrics["robots"]
@@ -147,6 +150,9 @@ class Swarm(unittest.TestCase):
             self.assertEqual(r["frames"], self.FRAMES)
             self.assertTrue(math.isfinite(r["ate_rmse"]), r["name"])
             self.assertLess(r["ate_rmse"], 0.5, r["name"])
+            # Every robot met a: the swarm joins all in a's frame, one map.
+            self.assertEqual(r["frame"], "a", r["name"])
+            self.assertLess(r["ate_rmse_joint"], 0.5, r["name"])
             self.assertGreater(r["bytes_sent"], 0, r["name"])
             self.assertGreater(r["bytes_received"], 0, r["name"])
             self.assertEqual(r["counters"]["descriptors_sent"], r["keyframes"], r["name"])

@@ -22,6 +22,7 @@
 #include <dcl/core/se3.hpp>
 #include <dcl/eval/run_report.hpp>
 #include <dcl/io/dataset.hpp>
+#include <dcl/robot/frames.hpp>
 #include <dcl/robot/robot_node.hpp>
 #include <dcl/sim/sim_source.hpp>
 
@@ -39,11 +40,13 @@ struct SwarmRun {
 /// Plays the convoy's scans, then `drain` s more of ticks for the rounds to
 /// end, and on while a robot has not settled (60 s at most), as a swarm run
 /// does. From frame `part` on the robots are far out of each other's range;
-/// robot r from frame leave[r] on, where `leave` names it.
+/// robot r from frame leave[r] on, and before frame arrive[r], where they
+/// name it.
 SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_config = {},
                double drain = 10.0, const RobotConfig& config = {},
                std::size_t part = std::numeric_limits<std::size_t>::max(),
-               const std::vector<std::size_t>& leave = {}) {
+               const std::vector<std::size_t>& leave = {},
+               const std::vector<std::size_t>& arrive = {}) {
   if (std::getenv("DCL_TEST_DEBUG")) spdlog::set_level(spdlog::level::debug);
   SwarmRun run;
   run.radio = std::make_unique<comm::SimRadio>(radio_config);
@@ -66,7 +69,8 @@ SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_con
     t = stamp;
     for (std::size_t r = 0; r < scans.size(); ++r) {  // links follow the true positions
       const core::RobotId id(static_cast<std::uint8_t>(r));
-      const bool here = i < part && (r >= leave.size() || i < leave[r]);
+      const bool here =
+          i < part && (r >= leave.size() || i < leave[r]) && (r >= arrive.size() || i >= arrive[r]);
       run.radio->setPosition(id, here ? run.ground_truth[r].pose(i).translation()
                                       : Eigen::Vector3d(1e4 * static_cast<double>(r + 1), 0, 0));
     }
@@ -371,6 +375,62 @@ TEST(RobotNode, RoundsHoldTheLoopsOfARobotThatLeft) {
   EXPECT_GT(held.nodes[0]->counters().at("refine_held_loops"), 0.0);
   EXPECT_FALSE(free.nodes[0]->counters().contains("refine_held_loops"));
   EXPECT_LT(with, 0.5 * without);
+}
+
+TEST(RobotNode, FramesApartAreJoinedByTheLoopsBetweenThem) {
+  // b and c drive the street together while a is away: their rounds put c in
+  // b's frame. c leaves, a arrives: a's rounds with b put b in a's frame, and
+  // c, gone, stays in b's old one. The b-c loops place c's frame in a's,
+  // where c's map agrees with b's.
+  static const test::Convoy three("frames", 260, false, true);
+  RobotConfig config;
+  config.optimise_period = 5.0;
+  const SwarmRun run = drive(three, {}, 10.0, config, 260, {260, 260, 120}, {150, 0, 0});
+  const RobotNode& a = *run.nodes[0];
+  const RobotNode& b = *run.nodes[1];
+  const RobotNode& c = *run.nodes[2];
+  ASSERT_EQ(a.frame(), a.id());
+  ASSERT_EQ(b.frame(), a.id());
+  ASSERT_EQ(c.frame(), b.id());
+
+  std::vector<RobotEstimates> estimates;
+  std::vector<backend::Factor> loops;
+  for (const auto& node : run.nodes) {
+    RobotEstimates e{node->id(), node->frame(), {}};
+    for (const core::Keyframe& k : node->keyframes()) e.keyframes.push_back(node->estimate(k.id));
+    estimates.push_back(std::move(e));
+    for (const InterLoop& loop : node->interLoops())
+      if (loop.accepted) loops.push_back(loop.factor);
+  }
+  const std::vector<FrameLink> links = frameLinks(estimates, loops);
+  ASSERT_EQ(links.size(), 1u);       // a-b loops are within a's frame
+  EXPECT_EQ(links[0].from, b.id());  // b's frame, where c is, into a's
+  EXPECT_EQ(links[0].to, a.id());
+  const auto placed = joinFrames(links);
+  ASSERT_TRUE(placed.contains(b.id()));
+  EXPECT_EQ(placed.at(b.id()).root, a.id());
+  const Eigen::Isometry3d& T_a_b = placed.at(b.id()).T_root_frame;
+  // The b-c loops with each end where its robot left it: apart, then joined.
+  double apart = 0.0;
+  double joined = 0.0;
+  std::size_t count = 0;
+  for (const InterLoop& loop : b.interLoops()) {
+    const backend::Factor& f = loop.factor;
+    if (!loop.accepted || (f.from.robot != c.id() && f.to.robot != c.id())) continue;
+    const auto at = [&](const core::PoseKey& key, bool join) {
+      if (key.robot == b.id()) return b.estimate(key.keyframe);
+      return join ? Eigen::Isometry3d(T_a_b * c.estimate(key.keyframe)) : c.estimate(key.keyframe);
+    };
+    const core::Vector6d e0 = backend::factorResidual(f, at(f.from, false), at(f.to, false));
+    const core::Vector6d e1 = backend::factorResidual(f, at(f.from, true), at(f.to, true));
+    apart += e0.dot(f.information * e0);
+    joined += e1.dot(f.information * e1);
+    ++count;
+  }
+  std::printf("%zu b-c loops' cost: %.6g in their own frames, %.6g joined\n", count, apart, joined);
+  ASSERT_GT(count, 0u);
+  EXPECT_LT(joined, 1e-3 * apart);
+  EXPECT_LT(joined / static_cast<double>(count), 20.0);
 }
 
 TEST(RobotNode, CountsEveryStageOfTheExchange) {

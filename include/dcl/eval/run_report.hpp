@@ -28,6 +28,9 @@ struct RobotRun {
   core::Trajectory estimate;
   /// The same keyframes by the robot's odometry alone, in its own odometry frame.
   core::Trajectory odometry;
+  /// The robot whose frame `estimate` is in: robots of one frame share the
+  /// one alignment of `ate_rmse_joint`. Empty: one frame for all.
+  std::string frame;
   /// Ground truth T_world_sensor at any rate (associated by stamp); empty when the dataset has
   /// none.
   core::Trajectory ground_truth;
@@ -69,8 +72,8 @@ struct RobotMetrics {
   std::optional<double> ate_rmse;
   /// m, RMSE of the odometry alone at the same keyframes, SE(3)-aligned per robot.
   std::optional<double> ate_rmse_odometry_only;
-  /// m, RMSE of the full system with one SE(3) alignment for all robots
-  /// (fitted on every robot's keyframes): how well the maps agree with each other.
+  /// m, RMSE of the full system with one SE(3) alignment for all robots in
+  /// its frame (fitted on all their keyframes): how well the maps agree.
   std::optional<double> ate_rmse_joint;
   std::optional<double> are_rmse_deg;                ///< deg, as ate_rmse
   std::optional<double> are_rmse_deg_odometry_only;  ///< deg, as ate_rmse_odometry_only

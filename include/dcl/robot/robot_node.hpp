@@ -45,6 +45,7 @@
 #include <cstdint>
 #include <map>
 #include <memory>
+#include <optional>
 #include <set>
 #include <string>
 #include <vector>
@@ -127,8 +128,9 @@ struct RobotConfig {
   /// keyframes that round placed.
   bool solve_alone = true;
   /// In a round's refinement, hold the accepted loops to neighbours out of the
-  /// group (out of range, or gone) where the rounds in this frame left those
-  /// neighbours: what the round moves stays where they placed their maps,
+  /// group (out of range, or gone) where the last rounds left those
+  /// neighbours (a round in another frame takes them along with this robot's
+  /// keyframes): what the round moves stays where they placed their maps,
   /// which they cannot hear of. Without it a round optimises its members'
   /// loops only, and the swarm's maps part where the absent robots met it.
   bool hold_absent = true;
@@ -171,6 +173,10 @@ class RobotNode {
   /// Keyframe `k`'s pose T_world_keyframe in the frame of the robot's group
   /// (its own odometry frame until a round finished).
   [[nodiscard]] Eigen::Isometry3d estimate(core::KeyframeId k) const;
+  /// The frame the estimates are in, named by the robot whose odometry frame
+  /// it is (frames.hpp): the own until a round places the robot. None after
+  /// a round whose frame its initiator did not say.
+  [[nodiscard]] std::optional<core::RobotId> frame() const;
 
   /// Nothing left to optimise with the robots in range: no round under way,
   /// none due for changed loops, and the last one converged. A recording

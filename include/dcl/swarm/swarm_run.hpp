@@ -62,7 +62,11 @@ struct MemberResult {
   std::vector<core::Keyframe> keyframes;  ///< without their clouds
   /// Their clouds for the map (none when SwarmConfig::map keeps no map).
   KeyframeClouds map_clouds;
-  backend::PoseGraph graph;  ///< robot::RobotNode::graph() at the end
+  backend::PoseGraph graph;  ///< robot::RobotNode::graph() at the end, in `frame`
+  /// The frame its estimates are in (robot/frames.hpp): the robot's own,
+  /// joined by the loops between frames to the lowest frame they reach, so
+  /// the robots of every group that ever met end in one; none when unknown.
+  std::optional<core::RobotId> frame;
   std::vector<robot::InterLoop> inter_loops;
   std::map<std::string, double> counters;
   comm::RobotTraffic traffic;
