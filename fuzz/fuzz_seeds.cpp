@@ -44,10 +44,11 @@ std::vector<comm::Body> bodies(const std::vector<std::uint8_t>& descriptor,
   comm::LoopMeasurement loop{KeyframeId(4), KeyframeId(90), comm::LoopStatus::verified, T,
                              dcl::core::Matrix6d::Identity() * 1e-4};
   loop.covariance(0, 1) = loop.covariance(1, 0) = 3e-5;
-  const comm::DgsState state{3,     comm::OptimisationStage::pose,
-                             7,     true,
-                             false, false,
-                             0.05F, {{RobotId(0), 7, 5, false}, {RobotId(1), 6, -1, false}}};
+  const comm::DgsState state{3,          comm::OptimisationStage::pose,
+                             7,          true,
+                             false,      false,
+                             0.05F,      {{RobotId(0), 7, 5, false}, {RobotId(1), 6, -1, false}},
+                             RobotId(0), false};
   comm::PoseEstimates poses{state, {{KeyframeId(5), T}}, false, false};
   comm::DgsState refine = state;
   refine.stage = comm::OptimisationStage::refine;

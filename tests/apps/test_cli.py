@@ -1149,6 +1149,17 @@ class Run(unittest.TestCase):
             self.assertFalse(os.path.exists(os.path.join(out, name)), name)
         self.assertEqual(metrics["robots"][0]["frames"], 20)
 
+    def test_robots_that_never_met_end_in_frames_of_their_own(self):
+        # In their first 2 s the robots close no loop: each stays in its own
+        # odometry frame, and the table says the maps are not joined (the demo
+        # run, with loops, puts all three in a's: Demo).
+        out = os.path.join(self.tmp.name, "apart")
+        _, stdout, _ = run("run", "--dataset", self.dataset, "--out", out, "--max-frames", "20")
+        self.assertIn("the robots end in 3 frames no loop joins: a | b | c", stdout)
+        with open(os.path.join(out, "metrics.json")) as f:
+            metrics = json.load(f)
+        self.assertEqual([r["frame"] for r in metrics["robots"]], ["a", "b", "c"])
+
     def test_a_negative_settle_is_refused_before_anything_is_written(self):
         out = os.path.join(self.tmp.name, "unsettled")
         for value in ("-1", "nan"):
