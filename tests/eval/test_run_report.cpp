@@ -241,6 +241,25 @@ TEST(RunReport, RigidMotionOfOneRobotChangesOnlyTheJointAte) {
   EXPECT_GT(*after[1].ate_rmse_joint, *before[1].ate_rmse_joint + 5.0);
 }
 
+TEST(RunReport, RobotsOfAnotherFrameAreAlignedApart) {
+  // The same moved robot, named as in a frame of its own: the joint alignment
+  // of the other two no longer sees it, and its own joint ATE is its own.
+  RunSummary run = swarm().run;
+  run.robots[1].estimate.transformWorld(
+      core::makePose(Eigen::Vector3d(25.0, -10.0, 0.0), core::expSO3(Eigen::Vector3d(0, 0, 0.3))));
+  for (std::size_t r = 0; r < kRobots; ++r) run.robots[r].frame.assign(1, r == 1 ? 'b' : 'a');
+  const std::vector<RobotMetrics> metrics = evaluateRun(run);
+  EXPECT_NEAR(*metrics[1].ate_rmse_joint, *metrics[1].ate_rmse, 1e-9);
+  const AteResult pooled =
+      computeAte(concatenated({&run.robots[0].estimate, &run.robots[2].estimate}),
+                 concatenated({&run.robots[0].ground_truth, &run.robots[2].ground_truth}));
+  for (const std::size_t r : {std::size_t{0}, std::size_t{2}}) {
+    const Association pairs = associate(run.robots[r].estimate, run.robots[r].ground_truth);
+    const double expected = computeAte(pairs, pooled.S_gt_est, Alignment::se3).translation_m.rmse;
+    EXPECT_NEAR(*metrics[r].ate_rmse_joint, expected, 1e-9 * expected);
+  }
+}
+
 TEST(RunReport, TrafficInKiloBytesPerSecond) {
   RunSummary run = swarm().run;
   for (const RobotMetrics& m : evaluateRun(run)) {
