@@ -19,6 +19,7 @@
 #include <dcl/swarm/swarm_run.hpp>
 
 #include "commands.hpp"
+#include "robot_outputs.hpp"
 #include "run_swarm.hpp"
 
 namespace dcl::apps {
@@ -59,6 +60,7 @@ void printTable(const Json& m) {
                            r["inter_loops_accepted"].get<std::size_t>()),
                static_cast<double>(r["bytes_sent"].get<std::size_t>()) / 1000.0);
   }
+  printFrames(m);
   fmt::print(
       "ATE in m (keyframes, SE(3)-aligned per robot; joint: one alignment for all robots of a "
       "frame); "

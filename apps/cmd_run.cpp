@@ -5,13 +5,11 @@
 #include <algorithm>
 #include <array>
 #include <filesystem>
-#include <map>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include <fmt/format.h>
-#include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
 
 #include <dcl/backend/pose_graph.hpp>
@@ -237,17 +235,7 @@ void printRunTable(const Json& m, const std::string& out) {
         r["inter_loops_accepted"].get<std::size_t>() + r["inter_loops_rejected"].get<std::size_t>(),
         static_cast<double>(r["bytes_sent"].get<std::size_t>()) / 1000.0);
   }
-  // Robots no loop joins to the others' frame end in one of their own: say so.
-  std::map<std::string, std::vector<std::string>> frames;
-  for (const Json& r : m["robots"])
-    frames[r.value("frame", std::string())].push_back(r["name"].get<std::string>());
-  if (frames.size() > 1) {
-    std::vector<std::string> groups;
-    for (const auto& [frame, names] : frames)
-      groups.push_back(fmt::format("{}", fmt::join(names, " ")));
-    fmt::print("the robots end in {} frames no loop joins: {} (a merged map per frame)\n",
-               frames.size(), fmt::join(groups, " | "));
-  }
+  printFrames(m);
   fmt::print("outputs in {} ({}metrics.json, report.html, one folder per robot)\n", out,
              m["map_points"].get<std::size_t>() > 0 ? "map.ply, " : "");
 }

@@ -442,6 +442,7 @@ void printTable(const Json& m, const std::string& out) {
                r["transmit_kBps"].get<double>(), r["receive_kBps"].get<double>(),
                r["max_lag_s"].get<double>());
   }
+  printFrames(m);
   fmt::print(
       "ATE in m (keyframes, SE(3)-aligned per robot; joint: one alignment for all robots of a "
       "frame); "

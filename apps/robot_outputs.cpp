@@ -6,8 +6,14 @@
 #include <exception>
 #include <filesystem>
 #include <limits>
+#include <map>
 #include <optional>
 #include <ostream>
+#include <string>
+#include <vector>
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <dcl/core/error.hpp>
 #include <dcl/io/file.hpp>
@@ -182,6 +188,18 @@ std::uint32_t clockIncarnation() {
     throw core::Error(
         "the system clock is outside 2024-01-01..2037-08: cannot derive an incarnation from it");
   return static_cast<std::uint32_t>(tenths);
+}
+
+void printFrames(const nlohmann::ordered_json& metrics) {
+  std::map<std::string, std::vector<std::string>> frames;
+  for (const Json& r : metrics.at("robots"))
+    frames[r.value("frame", std::string())].push_back(r.at("name").get<std::string>());
+  if (frames.size() < 2) return;
+  std::vector<std::string> groups;
+  for (const auto& [frame, names] : frames)
+    groups.push_back(fmt::format("{}", fmt::join(names, " ")));
+  fmt::print("the robots end in {} frames no loop joins: {} (a merged map per frame)\n",
+             frames.size(), fmt::join(groups, " | "));
 }
 
 nlohmann::ordered_json robotMetricsJson(const eval::RobotRun& run, const eval::RobotMetrics& m) {

@@ -27,6 +27,10 @@ namespace dcl::apps {
 /// caller appends what only it knows, then the counters.
 nlohmann::ordered_json robotMetricsJson(const eval::RobotRun& run, const eval::RobotMetrics& m);
 
+/// When metrics.json's robots end in more than one frame (no loop joins
+/// them), prints a line naming the robots of each: a merged map per frame.
+void printFrames(const nlohmann::ordered_json& metrics);
+
 /// The default incarnation of a robot process: tenths of a second since
 /// 2024-01-01 00:00 UTC. A restart takes far longer than 0.1 s (joining DDS
 /// alone does), so each life of a robot gets a larger number than the last,
