@@ -366,17 +366,12 @@ void joinFrames(std::vector<RobotOutputs>& robots) {
         loops.push_back(f);
     }
   }
-  const std::map<core::RobotId, robot::FramePlacement> placed =
-      robot::joinFrames(robot::frameLinks(estimates, loops));
-  for (RobotOutputs& r : robots) {
-    if (!r.report.frame) continue;
-    const auto it = placed.find(core::RobotId(*r.report.frame));
-    if (it == placed.end() || it->second.root.value() == *r.report.frame) continue;
-    core::Trajectory moved;
-    for (std::size_t k = 0; k < r.estimate.size(); ++k)
-      moved.push_back(r.estimate.stamp(k), it->second.T_root_frame * r.estimate.pose(k));
-    r.estimate = std::move(moved);
-    r.report.frame = it->second.root.value();
+  const std::vector<std::optional<robot::FramePlacement>> placed =
+      robot::joinRobots(estimates, loops);
+  for (std::size_t i = 0; i < robots.size(); ++i) {
+    if (!placed[i]) continue;
+    robots[i].estimate.transformWorld(placed[i]->T_root_frame);
+    robots[i].report.frame = placed[i]->root.value();
   }
 }
 

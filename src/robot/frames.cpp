@@ -77,6 +77,20 @@ std::vector<FrameLink> frameLinks(std::span<const RobotEstimates> robots,
   return links;
 }
 
+std::vector<std::optional<FramePlacement>> joinRobots(std::span<const RobotEstimates> robots,
+                                                      std::span<const backend::Factor> loops) {
+  const std::map<core::RobotId, FramePlacement> placed = joinFrames(frameLinks(robots, loops));
+  std::vector<std::optional<FramePlacement>> out;
+  for (const RobotEstimates& r : robots) {
+    const auto it = r.frame ? placed.find(*r.frame) : placed.end();
+    if (it == placed.end() || it->second.root == *r.frame)
+      out.emplace_back();
+    else
+      out.emplace_back(it->second);
+  }
+  return out;
+}
+
 Eigen::Isometry3d fitRigidMotion(std::span<const Eigen::Isometry3d> before,
                                  std::span<const Eigen::Isometry3d> after) {
   if (before.size() != after.size() || before.empty())

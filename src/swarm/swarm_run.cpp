@@ -140,16 +140,16 @@ void joinFrames(std::vector<MemberResult>& robots) {
         loops.push_back(loop.factor);
     }
   }
-  const std::vector<robot::FrameLink> links = robot::frameLinks(estimates, loops);
-  const std::map<core::RobotId, robot::FramePlacement> placed = robot::joinFrames(links);
-  for (MemberResult& m : robots) {
-    const auto it = m.frame ? placed.find(*m.frame) : placed.end();
-    if (it == placed.end() || it->second.root == *m.frame) continue;
-    const Eigen::Isometry3d& T_root_frame = it->second.T_root_frame;
+  const std::vector<std::optional<robot::FramePlacement>> placed =
+      robot::joinRobots(estimates, loops);
+  for (std::size_t r = 0; r < robots.size(); ++r) {
+    if (!placed[r]) continue;
+    MemberResult& m = robots[r];
     std::vector<std::pair<core::PoseKey, Eigen::Isometry3d>> moved;
-    for (const auto& [key, T] : m.graph.nodes()) moved.emplace_back(key, T_root_frame * T);
+    for (const auto& [key, T] : m.graph.nodes())
+      moved.emplace_back(key, placed[r]->T_root_frame * T);
     for (const auto& [key, T] : moved) m.graph.setEstimate(key, T);
-    m.frame = it->second.root;
+    m.frame = placed[r]->root;
   }
 }
 

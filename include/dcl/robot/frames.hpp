@@ -64,6 +64,13 @@ struct RobotEstimates {
 [[nodiscard]] std::vector<FrameLink> frameLinks(std::span<const RobotEstimates> robots,
                                                 std::span<const backend::Factor> loops);
 
+/// Per robot of `robots`, in order: the frame the loops between frames join
+/// its own to (the lowest they reach) and the motion into it; none for a
+/// robot of unknown frame or already in that frame. frameLinks, then
+/// joinFrames.
+[[nodiscard]] std::vector<std::optional<FramePlacement>> joinRobots(
+    std::span<const RobotEstimates> robots, std::span<const backend::Factor> loops);
+
 /// The rigid motion T minimising sum |T p_before - p_after|^2 over the
 /// keyframes' positions and, a metre along each axis, their orientations
 /// (so one keyframe, or a straight path, still fixes it). Both spans have
