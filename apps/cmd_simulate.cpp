@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -75,9 +76,18 @@ std::uintmax_t folderBytes(const fs::path& folder) {
 
 // ---- simulate ----
 
+/// Which lasers the robots carry, in words.
+std::string_view lasersOf(const io::SimSpec& sim) {
+  if (!sim.noise) return "perfect, without noise";
+  if (!sim.calibration_error) return "perfect (on the published beam table)";
+  if (sim.shared_unit) return "one unit with calibration errors, carried by every robot";
+  return "each robot its own unit with calibration errors";
+}
+
 void printSummary(const sim::Preset& preset, const io::DatasetSpec& spec, const std::string& out) {
   fmt::print("dataset '{}' ({}): {} world, seed {}, {} at {:.2f} m\n", spec.name,
              preset.description, preset.world, preset.seed, spec.sensor, spec.mount_height);
+  fmt::print("  lasers: {}\n", lasersOf(*spec.sim));
   fmt::print("  {:<6} {:>8} {:>10} {:>10} {:>8}\n", "robot", "scans", "length m", "duration s",
              "sensor");
   std::size_t scans = 0;

@@ -156,6 +156,7 @@ SimSpec readSim(MapReader sim) {
   if (auto n = sim.optional("calibration_error")) {
     out.calibration_error = sim.boolean("calibration_error", *n);
   }
+  if (auto n = sim.optional("shared_unit")) out.shared_unit = sim.boolean("shared_unit", *n);
   sim.finish();
   return out;
 }
@@ -274,6 +275,8 @@ void writeSim(std::ostream& out, const SimSpec& sim) {
   out << "  noise: " << (sim.noise ? "true" : "false") << "  # range noise and dropout\n";
   out << "  calibration_error: " << (sim.calibration_error ? "true" : "false")
       << "  # with noise: each robot's lasers off the published table\n";
+  out << "  shared_unit: " << (sim.shared_unit ? "true" : "false")
+      << "  # with calibration_error: every robot carries the first robot's unit\n";
 }
 
 void writeRobot(std::ostream& out, const RobotSpec& robot) {

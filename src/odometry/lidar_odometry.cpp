@@ -56,6 +56,7 @@ OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan
   const Eigen::Isometry3d T_predicted = predictReference(stamp + t_mid);
   // 4. Register against the local map (the first frame starts the map).
   RegistrationResult registration;
+  bool redeskewed = false;
   registration.T_target_source = T_predicted;
   registration.converged = true;
   if (!map_.empty()) {
@@ -68,10 +69,32 @@ OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan
     if (!threshold_.learned() && registration.inliers >= config_.icp.min_inliers) {
       registration = registerScan(source, map_, registration.T_target_source, frameIcpConfig(0.0));
     }
+    // A sharp change of motion (braking into a turn) leaves the sweep deskewed
+    // with a velocity the sensor no longer had, bent by up to half a sweep of
+    // the difference, and the registration settles on the bent sweep. Deskew
+    // it again with the motion it registered at, and register once more.
+    // Not on a degenerate registration, whose motion along the open direction
+    // is a guess; and the second pass is kept only if the sweep fits better.
+    if (registration.inliers >= config_.icp.min_inliers && !registration.degenerate) {
+      if (const auto velocity = redeskewVelocity(stamp + t_mid, registration.T_target_source,
+                                                 sweepDuration(clean.cloud))) {
+        std::vector<Eigen::Vector3d> refined = thinnedFrame(clean.cloud, t_mid, *velocity);
+        RegistrationResult again =
+            registerScan(voxelDownsample(refined, 1.5 * config_.mapVoxelSize()), map_,
+                         registration.T_target_source, frameIcpConfig(threshold_.sigma()));
+        if (again.inliers >= config_.icp.min_inliers && !again.degenerate &&
+            again.rmse < registration.rmse) {
+          registration = again;
+          frame = std::move(refined);
+          redeskewed = true;
+        }
+      }
+    }
   }
   // 5. Check: too few correspondences means the pose would be a guess.
   OdometryResult result = skipped(stamp, droppedNote(clean));
   result.health = healthOf(registration, result.health.problem);
+  result.health.redeskewed = redeskewed;
   if (!map_.empty() && registration.inliers < config_.icp.min_inliers) {
     addProblem(result.health.problem,
                "registration failed: " + std::to_string(registration.inliers) + " correspondences");
@@ -154,10 +177,28 @@ core::Matrix6d LidarOdometry::covarianceOf(const RegistrationResult& registratio
   return covariance;
 }
 
-std::vector<Eigen::Vector3d> LidarOdometry::thinnedFrame(const core::PointCloud& cloud,
-                                                         double t_mid) const {
-  const core::Vector6d velocity = config_.deskew ? velocity_ : core::Vector6d::Zero();
-  return voxelDownsample(deskew(cloud, velocity, t_mid), 0.5 * config_.mapVoxelSize());
+std::vector<Eigen::Vector3d> LidarOdometry::thinnedFrame(
+    const core::PointCloud& cloud, double t_mid,
+    const std::optional<core::Vector6d>& velocity) const {
+  const core::Vector6d v = config_.deskew ? velocity.value_or(velocity_) : core::Vector6d::Zero();
+  return voxelDownsample(deskew(cloud, v, t_mid), 0.5 * config_.mapVoxelSize());
+}
+
+std::optional<core::Vector6d> LidarOdometry::redeskewVelocity(
+    double reference_time, const Eigen::Isometry3d& T_odom_reference, double duration) const {
+  // Not before a velocity is known (the first two sweeps have their own fix-up).
+  if (!config_.deskew || config_.redeskew_error <= 0.0 || duration <= 0.0 ||
+      !last_reference_time_ || first_sweep_ || reference_time <= *last_reference_time_) {
+    return std::nullopt;
+  }
+  const core::Vector6d registered = core::logSE3(T_odom_reference_.inverse() * T_odom_reference) /
+                                    (reference_time - *last_reference_time_);
+  const core::Vector6d change = registered - velocity_;
+  constexpr double kLever = 10.0;  // m, the point whose displacement is judged
+  const double error =
+      0.5 * duration * (change.head<3>().norm() + kLever * change.tail<3>().norm());
+  if (error <= config_.redeskew_error) return std::nullopt;
+  return registered;
 }
 
 void LidarOdometry::commit(double stamp, double t_mid, const Eigen::Isometry3d& T_odom_reference,

@@ -92,6 +92,12 @@ double sweepMidTime(const core::PointCloud& cloud) {
   return 0.5 * (static_cast<double>(*t_min) + static_cast<double>(*t_max));
 }
 
+double sweepDuration(const core::PointCloud& cloud) {
+  if (cloud.time.size() != cloud.size() || cloud.empty()) return 0.0;
+  const auto [t_min, t_max] = std::minmax_element(cloud.time.begin(), cloud.time.end());
+  return static_cast<double>(*t_max) - static_cast<double>(*t_min);
+}
+
 std::vector<Eigen::Vector3d> voxelDownsample(std::span<const Eigen::Vector3d> points,
                                              double voxel_size) {
   std::unordered_set<Voxel, VoxelHash> occupied;

@@ -22,6 +22,7 @@ struct Recipe {
   bool fixed_robots;   ///< the robot count cannot change (KITTI splits)
   std::function<std::vector<Route>(const PresetOptions&, int robots)> routes;
   bool calibration_error = true;  ///< the robots' lasers off the published table
+  bool shared_unit = false;       ///< one LiDAR unit for every robot (one car's drive split)
 };
 
 std::vector<Route> kitti(const PresetOptions& options, const std::string& sequence) {
@@ -31,16 +32,18 @@ std::vector<Route> kitti(const PresetOptions& options, const std::string& sequen
 }
 
 Recipe kittiRecipe(const std::string& sequence, int robots) {
-  const std::string name = "kitti" + sequence + "-" + std::to_string(robots);
-  return {name,
-          "KITTI " + sequence + " ground truth split into " + std::to_string(robots) +
-              " robots, city world, HDL-64",
-          "city",
-          "hdl64",
-          kKittiMountHeight,
-          robots,
-          true,
-          [sequence](const PresetOptions& o, int) { return kitti(o, sequence); }};
+  Recipe recipe{"kitti" + sequence + "-" + std::to_string(robots),
+                "KITTI " + sequence + " ground truth split into " + std::to_string(robots) +
+                    " robots, city world, HDL-64",
+                "city",
+                "hdl64",
+                kKittiMountHeight,
+                robots,
+                true,
+                [sequence](const PresetOptions& o, int) { return kitti(o, sequence); }};
+  // One car drove the whole sequence: its parts carry that car's one HDL-64.
+  recipe.shared_unit = true;
+  return recipe;
 }
 
 Recipe campusRecipe(int robots) {
@@ -136,6 +139,7 @@ Preset makePreset(const std::string& name, const PresetOptions& options) {
   preset.mount_height = recipe.mount_height;
   preset.seed = options.seed;
   preset.calibration_error = recipe.calibration_error;
+  preset.shared_unit = recipe.shared_unit;
   preset.routes = recipe.routes(options, robotCount(recipe, options.robots));
   return preset;
 }

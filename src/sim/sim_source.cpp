@@ -81,7 +81,8 @@ struct SimWorld::Impl {
   std::vector<core::Trajectory> ground_truth;
   World world;
   ScanSimulator simulator;
-  std::vector<BeamCalibration> units;  ///< each robot's LiDAR; perfect ones without noise
+  /// Each robot's LiDAR (the first robot's for all when shared); perfect ones without noise.
+  std::vector<BeamCalibration> units;
 
   Impl(const io::DatasetSpec& s, std::vector<core::Trajectory> gt, const SimWorldOptions& options)
       : spec(s),
@@ -91,8 +92,9 @@ struct SimWorld::Impl {
             {.routes = ground_truth, .mount_height = s.mount_height, .seed = s.sim->seed})),
         simulator(world, modelOf(s), scanOptionsOf(*s.sim, options)) {
     for (std::size_t r = 0; r < ground_truth.size(); ++r) {
+      const std::size_t unit = s.sim->shared_unit ? 0 : r;
       units.push_back(s.sim->noise && s.sim->calibration_error
-                          ? BeamCalibration::draw(simulator.model(), unitSeed(s.sim->seed, r))
+                          ? BeamCalibration::draw(simulator.model(), unitSeed(s.sim->seed, unit))
                           : BeamCalibration{});
     }
   }
@@ -118,6 +120,10 @@ core::PointCloud SimWorld::scan(std::size_t robot, std::size_t index) const {
 
 std::size_t SimWorld::robots() const {
   return impl_->ground_truth.size();
+}
+
+const BeamCalibration& SimWorld::unit(std::size_t robot) const {
+  return impl_->units.at(robot);
 }
 
 const core::Trajectory& SimWorld::groundTruth(std::size_t robot) const {
@@ -200,12 +206,12 @@ io::DatasetSpec writeSimDataset(const std::string& folder, const Preset& preset,
   spec.description = preset.description;
   spec.sensor = preset.sensor;
   spec.mount_height = preset.mount_height;
-  spec.sim =
-      io::SimSpec{.world = *kind,
-                  .seed = preset.seed,
-                  .motion_distortion = options.motion_distortion,
-                  .noise = options.noise,
-                  .calibration_error = options.calibration_error && preset.calibration_error};
+  spec.sim = io::SimSpec{.world = *kind,
+                         .seed = preset.seed,
+                         .motion_distortion = options.motion_distortion,
+                         .noise = options.noise,
+                         .calibration_error = options.calibration_error && preset.calibration_error,
+                         .shared_unit = preset.shared_unit};
   for (const Route& route : preset.routes) {
     const std::string gt = "ground_truth/" + route.name + ".tum";
     io::writeTumPoses((fs::path(folder) / gt).string(), route.T_world_sensor);

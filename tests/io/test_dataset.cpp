@@ -26,7 +26,9 @@ DatasetSpec mixedSpec() {
   spec.sim = SimSpec{.world = WorldKind::aliasing,
                      .seed = 18446744073709551615u,
                      .motion_distortion = false,
-                     .noise = true};
+                     .noise = true,
+                     .calibration_error = false,
+                     .shared_unit = true};
   RobotSpec a{.name = "a", .scans = {}, .ground_truth = "a/gt.tum", .start_time = 0.0};
   RobotSpec b{
       .name = "b",
@@ -78,6 +80,8 @@ TEST(Dataset, RoundTripKeepsEveryField) {
   EXPECT_EQ(back.sim->seed, 18446744073709551615u);
   EXPECT_FALSE(back.sim->motion_distortion);
   EXPECT_TRUE(back.sim->noise);
+  EXPECT_FALSE(back.sim->calibration_error);
+  EXPECT_TRUE(back.sim->shared_unit);
   ASSERT_EQ(back.robots.size(), 3u);
   EXPECT_EQ(back.robots[0].scans.type, ScanSourceType::sim);
   EXPECT_EQ(back.robots[1].scans.type, ScanSourceType::kitti);

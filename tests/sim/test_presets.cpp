@@ -31,6 +31,7 @@ struct Expected {
   std::string world;
   std::string sensor;
   std::size_t robots;
+  bool shared_unit = false;  ///< one car's drive split into robots
 };
 
 class EveryPreset : public ::testing::TestWithParam<Expected> {};
@@ -41,6 +42,7 @@ TEST_P(EveryPreset, BuildsWithItsWorldSensorAndRobots) {
   EXPECT_EQ(p.name, e.name);
   EXPECT_EQ(p.world, e.world);
   EXPECT_EQ(p.sensor, e.sensor);
+  EXPECT_EQ(p.shared_unit, e.shared_unit);
   EXPECT_FALSE(p.description.empty());
   EXPECT_GT(p.mount_height, 0.5);
   EXPECT_LT(p.mount_height, 2.5);
@@ -55,9 +57,9 @@ TEST_P(EveryPreset, BuildsWithItsWorldSensorAndRobots) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Presets, EveryPreset,
-                         ::testing::Values(Expected{"kitti00-3", "city", "hdl64", 3},
-                                           Expected{"kitti05-3", "city", "hdl64", 3},
-                                           Expected{"kitti08-2", "city", "hdl64", 2},
+                         ::testing::Values(Expected{"kitti00-3", "city", "hdl64", 3, true},
+                                           Expected{"kitti05-3", "city", "hdl64", 3, true},
+                                           Expected{"kitti08-2", "city", "hdl64", 2, true},
                                            Expected{"campus-3", "campus", "vlp16", 3},
                                            Expected{"campus-9", "campus", "vlp16", 9},
                                            Expected{"aliasing-3", "aliasing", "vlp16", 3},

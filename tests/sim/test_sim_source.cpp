@@ -213,6 +213,28 @@ TEST_F(SimSourceTest, NoisyScansLineUpWithinTheNoise) {
   EXPECT_LT(perfect_max, 0.1);  // 5 sigma
 }
 
+TEST_F(SimSourceTest, RobotsCarryTheirOwnUnitOrShareTheFirstRobots) {
+  io::DatasetSpec spec = write(test::tinyPreset());
+  const SimWorld own(spec);
+  ASSERT_FALSE(own.unit(0).empty());
+  ASSERT_EQ(own.unit(0).elevation_error_deg.size(), 16u);  // VLP-16
+  EXPECT_NE(own.unit(0).elevation_error_deg, own.unit(1).elevation_error_deg);
+  EXPECT_NE(own.unit(0).range_offset, own.unit(1).range_offset);
+
+  // One car's drive split into robots: b carries a's unit, and b's scans change.
+  spec.sim->shared_unit = true;
+  const SimWorld shared(spec);
+  EXPECT_EQ(shared.unit(0).elevation_error_deg, own.unit(0).elevation_error_deg);
+  EXPECT_EQ(shared.unit(1).elevation_error_deg, own.unit(0).elevation_error_deg);
+  EXPECT_EQ(shared.unit(1).range_offset, own.unit(0).range_offset);
+  EXPECT_TRUE(test::sameCloud(shared.scan(0, 2), own.scan(0, 2)));
+  EXPECT_FALSE(test::sameCloud(shared.scan(1, 2), own.scan(1, 2)));
+
+  // Without calibration error there is nothing to share: perfect lasers.
+  spec.sim->calibration_error = false;
+  EXPECT_TRUE(SimWorld(spec).unit(1).empty());
+}
+
 TEST_F(SimSourceTest, OpensFileRobotsThroughIoAndRefusesNonSimDatasets) {
   io::DatasetSpec spec = write(test::tinyPreset());
   EXPECT_NE(openRobotScans(spec, 0)->describe().find("simulated robot 'a'"), std::string::npos);

@@ -19,6 +19,8 @@
 namespace dcl::swarm {
 namespace {
 
+constexpr std::size_t kFrames = 160;  ///< frames each robot plays
+
 const test::Convoy& convoy() {
   static const test::Convoy c("swarm");
   return c;
@@ -37,7 +39,9 @@ std::vector<SwarmMember> members(const test::Convoy& data) {
 SwarmResult run(int threads, const SwarmConfig& base = {}) {
   SwarmConfig config = base;
   config.threads = threads;
-  config.max_frames = 120;
+  // The whole convoy: PCM keeps loops once they span 10 m of both robots, a
+  // few frames more than the first 12 s give with every odometry setting.
+  config.max_frames = kFrames;
   return runSwarm(members(convoy()), config);
 }
 
@@ -55,7 +59,7 @@ TEST(SwarmRun, TheSameRunOnOneOrTwoThreadsGivesTheSameResult) {
   for (std::size_t r = 0; r < one.robots.size(); ++r) {
     const MemberResult& a = one.robots[r];
     const MemberResult& b = two.robots[r];
-    EXPECT_EQ(a.frames, 120u);
+    EXPECT_EQ(a.frames, kFrames);
     EXPECT_EQ(a.counters, b.counters) << a.name;
     EXPECT_EQ(a.traffic.sent, b.traffic.sent);
     EXPECT_EQ(a.traffic.received, b.traffic.received);
@@ -83,7 +87,7 @@ TEST(SwarmRun, KeepsGoingWhenTheRadioLosesMessages) {
   lossy.drain = 15.0;  // time for the re-sends of the last descriptors
   const SwarmResult result = run(2, lossy);
   for (const MemberResult& m : result.robots) {
-    EXPECT_EQ(m.frames, 120u);
+    EXPECT_EQ(m.frames, kFrames);
     EXPECT_GT(m.keyframes.size(), 5u);
   }
   // Reliable messages are re-sent: every descriptor still arrives, once.

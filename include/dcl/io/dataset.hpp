@@ -83,6 +83,10 @@ struct SimSpec {
   /// With noise: each robot's LiDAR with its own lasers' elevation and range
   /// errors (sim::BeamCalibration); default on.
   bool calibration_error = true;
+  /// With calibration_error: every robot carries the same LiDAR unit (the
+  /// first robot's), as when one car's drive is split into robots (the KITTI
+  /// presets); default off, each robot its own unit.
+  bool shared_unit = false;
 };
 
 /// The content of a dataset.yaml.

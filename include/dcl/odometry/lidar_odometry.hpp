@@ -26,7 +26,12 @@ struct OdometryConfig {
   double voxel_size = 0.0;        ///< m, map voxel edge; 0 = max_range / 100 (KISS-ICP's rule)
   int max_points_per_voxel = 20;  ///< map points a voxel keeps (KISS-ICP: 20)
   bool deskew = true;             ///< undo the motion during the sweep when points carry times
-  std::size_t min_points = 100;   ///< a scan with fewer usable points is skipped
+  /// m: when the registered motion moves a point 10 m out at the sweep's ends
+  /// by more than this against the velocity the sweep was deskewed with (a
+  /// sharp turn or braking), the sweep is deskewed again with the registered
+  /// motion and registered once more; 0 turns this off.
+  double redeskew_error = 0.05;
+  std::size_t min_points = 100;         ///< a scan with fewer usable points is skipped
   double min_translation_sigma = 0.01;  ///< m, floor of the reported per-frame covariance
   /// rad, floor of the reported per-frame covariance about the sensor's x and y axes.
   double min_rotation_sigma = 1e-3;
@@ -51,6 +56,9 @@ struct OdometryConfig {
     v.field("voxel_size", voxel_size, "m, map voxel edge; 0 = max_range / 100");
     v.field("max_points_per_voxel", max_points_per_voxel, "map points a voxel keeps");
     v.field("deskew", deskew, "undo the motion during the sweep when points carry times");
+    v.field("redeskew_error", redeskew_error,
+            "m, deskew and register again when the registered motion moves a point 10 m out at "
+            "the sweep's ends by more than this (0: never)");
     v.field("min_points", min_points, "a scan with fewer usable points is skipped");
     v.field("min_translation_sigma", min_translation_sigma, "m, covariance floor");
     v.field("min_rotation_sigma", min_rotation_sigma, "rad, covariance floor about x and y");
@@ -101,10 +109,16 @@ class LidarOdometry final : public Odometry {
   void redoFirstSweep();
   /// The constant-velocity prediction of the sensor pose at `time` (s, absolute).
   [[nodiscard]] Eigen::Isometry3d predictReference(double time) const;
-  /// The cleaned `cloud` deskewed to `t_mid` (s after the stamp) with the current
-  /// velocity (none when deskewing is off), one point per half map voxel.
-  [[nodiscard]] std::vector<Eigen::Vector3d> thinnedFrame(const core::PointCloud& cloud,
-                                                          double t_mid) const;
+  /// The cleaned `cloud` deskewed to `t_mid` (s after the stamp) with `velocity`
+  /// (the current one by default; none when deskewing is off), one point per half map voxel.
+  [[nodiscard]] std::vector<Eigen::Vector3d> thinnedFrame(
+      const core::PointCloud& cloud, double t_mid,
+      const std::optional<core::Vector6d>& velocity = std::nullopt) const;
+  /// The twist registering at `T_odom_reference` (mid-sweep at `reference_time`)
+  /// implies, when it differs from the one the sweep was deskewed with by more
+  /// than config().redeskew_error over the sweep's half `duration`; none otherwise.
+  [[nodiscard]] std::optional<core::Vector6d> redeskewVelocity(
+      double reference_time, const Eigen::Isometry3d& T_odom_reference, double duration) const;
   /// Commits an accepted mid-sweep pose (the sweep's middle is `t_mid` s after
   /// `stamp`): velocity, adaptive threshold, and the pose at the stamp.
   void commit(double stamp, double t_mid, const Eigen::Isometry3d& T_odom_reference,

@@ -15,10 +15,11 @@ namespace dcl::odometry {
 
 /// How one frame went: enough for a user to see why a pose is poor.
 struct FrameHealth {
-  bool accepted = false;            ///< the frame updated the pose (false: skipped, see `problem`)
-  bool converged = false;           ///< the registration met its convergence criterion
-  bool degenerate = false;          ///< the registration is poorly constrained in some direction
-  int iterations = 0;               ///< registration iterations used
+  bool accepted = false;    ///< the frame updated the pose (false: skipped, see `problem`)
+  bool converged = false;   ///< the registration met its convergence criterion
+  bool degenerate = false;  ///< the registration is poorly constrained in some direction
+  bool redeskewed = false;  ///< deskewed and registered again with the motion it registered at
+  int iterations = 0;       ///< registration iterations used
   std::size_t correspondences = 0;  ///< inlier correspondences at the last iteration
   double residual = 0.0;  ///< m, RMS point-to-point (or point-to-plane) residual of inliers
   std::string problem;    ///< empty when all is well; else what was wrong (skipped frames)

@@ -48,6 +48,10 @@ std::vector<Eigen::Vector3d> deskew(const core::PointCloud& cloud, const core::V
 /// stamp); 0 for a cloud without times.
 double sweepMidTime(const core::PointCloud& cloud);
 
+/// How long the sweep took, max - min of the per-point times (s); 0 for a
+/// cloud without times.
+double sweepDuration(const core::PointCloud& cloud);
+
 /// One point per occupied voxel of edge `voxel_size` (m): the first point of
 /// `points` falling in it, in the order of first occurrence (deterministic).
 std::vector<Eigen::Vector3d> voxelDownsample(std::span<const Eigen::Vector3d> points,

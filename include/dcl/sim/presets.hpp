@@ -21,6 +21,9 @@ struct Preset {
   std::vector<Route> routes{};    ///< one per robot, named "a", "b", ...
   std::uint64_t seed = 1;         ///< seeds the world, the routes and the sensor noise
   bool calibration_error = true;  ///< the robots' lasers off the published table (BeamCalibration)
+  /// Every robot carries one LiDAR unit: a single car's drive split into
+  /// robots, as the paper splits the KITTI sequences.
+  bool shared_unit = false;
 };
 
 /// What the user may change about a preset.

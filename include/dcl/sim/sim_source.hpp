@@ -47,6 +47,10 @@ class SimWorld {
 
   /// Number of robots.
   [[nodiscard]] std::size_t robots() const;
+  /// The LiDAR unit robot `robot` carries: its lasers' errors against the
+  /// published table (empty: perfect lasers). The same unit for every robot
+  /// when the dataset says `shared_unit`.
+  [[nodiscard]] const BeamCalibration& unit(std::size_t robot) const;
   /// Ground truth T_world_sensor of robot `robot`; one scan per pose.
   [[nodiscard]] const core::Trajectory& groundTruth(std::size_t robot) const;
   /// The dataset it was built from.
