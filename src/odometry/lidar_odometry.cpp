@@ -69,27 +69,7 @@ OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan
     if (!threshold_.learned() && registration.inliers >= config_.icp.min_inliers) {
       registration = registerScan(source, map_, registration.T_target_source, frameIcpConfig(0.0));
     }
-    // A sharp change of motion (braking into a turn) leaves the sweep deskewed
-    // with a velocity the sensor no longer had, bent by up to half a sweep of
-    // the difference, and the registration settles on the bent sweep. Deskew
-    // it again with the motion it registered at, and register once more.
-    // Not on a degenerate registration, whose motion along the open direction
-    // is a guess; and the second pass is kept only if the sweep fits better.
-    if (registration.inliers >= config_.icp.min_inliers && !registration.degenerate) {
-      if (const auto velocity = redeskewVelocity(stamp + t_mid, registration.T_target_source,
-                                                 sweepDuration(clean.cloud))) {
-        std::vector<Eigen::Vector3d> refined = thinnedFrame(clean.cloud, t_mid, *velocity);
-        RegistrationResult again =
-            registerScan(voxelDownsample(refined, 1.5 * config_.mapVoxelSize()), map_,
-                         registration.T_target_source, frameIcpConfig(threshold_.sigma()));
-        if (again.inliers >= config_.icp.min_inliers && !again.degenerate &&
-            again.rmse < registration.rmse) {
-          registration = again;
-          frame = std::move(refined);
-          redeskewed = true;
-        }
-      }
-    }
+    redeskewed = registerAgainIfMotionChanged(clean.cloud, stamp, t_mid, registration, frame);
   }
   // 5. Check: too few correspondences means the pose would be a guess.
   OdometryResult result = skipped(stamp, droppedNote(clean));
@@ -182,6 +162,32 @@ std::vector<Eigen::Vector3d> LidarOdometry::thinnedFrame(
     const std::optional<core::Vector6d>& velocity) const {
   const core::Vector6d v = config_.deskew ? velocity.value_or(velocity_) : core::Vector6d::Zero();
   return voxelDownsample(deskew(cloud, v, t_mid), 0.5 * config_.mapVoxelSize());
+}
+
+bool LidarOdometry::registerAgainIfMotionChanged(const core::PointCloud& cloud, double stamp,
+                                                 double t_mid, RegistrationResult& registration,
+                                                 std::vector<Eigen::Vector3d>& frame) const {
+  // A sharp change of motion (braking into a turn) leaves the sweep deskewed
+  // with a velocity the sensor no longer had, bent by up to half a sweep of
+  // the difference, and the registration settles on the bent sweep. Deskew
+  // it again with the motion it registered at, and register once more. Not
+  // after a degenerate registration, whose motion along the open direction is
+  // a guess; and the second pass is kept only if the sweep fits better.
+  if (registration.inliers < config_.icp.min_inliers || registration.degenerate) return false;
+  const auto velocity =
+      redeskewVelocity(stamp + t_mid, registration.T_target_source, sweepDuration(cloud));
+  if (!velocity) return false;
+  std::vector<Eigen::Vector3d> refined = thinnedFrame(cloud, t_mid, *velocity);
+  RegistrationResult again =
+      registerScan(voxelDownsample(refined, 1.5 * config_.mapVoxelSize()), map_,
+                   registration.T_target_source, frameIcpConfig(threshold_.sigma()));
+  if (again.inliers < config_.icp.min_inliers || again.degenerate ||
+      again.rmse >= registration.rmse) {
+    return false;
+  }
+  registration = std::move(again);
+  frame = std::move(refined);
+  return true;
 }
 
 std::optional<core::Vector6d> LidarOdometry::redeskewVelocity(

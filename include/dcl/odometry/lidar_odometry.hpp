@@ -114,6 +114,14 @@ class LidarOdometry final : public Odometry {
   [[nodiscard]] std::vector<Eigen::Vector3d> thinnedFrame(
       const core::PointCloud& cloud, double t_mid,
       const std::optional<core::Vector6d>& velocity = std::nullopt) const;
+  /// The second pass for a sweep whose motion changed during it: when
+  /// redeskewVelocity says so, deskews `cloud` (stamped `stamp`, registered
+  /// at mid-sweep `t_mid`) with the registered motion and registers it again
+  /// from `registration`; replaces `registration` and `frame` and returns
+  /// true only if the sweep then fits the map better.
+  bool registerAgainIfMotionChanged(const core::PointCloud& cloud, double stamp, double t_mid,
+                                    RegistrationResult& registration,
+                                    std::vector<Eigen::Vector3d>& frame) const;
   /// The twist registering at `T_odom_reference` (mid-sweep at `reference_time`)
   /// implies, when it differs from the one the sweep was deskewed with by more
   /// than config().redeskew_error over the sweep's half `duration`; none otherwise.
