@@ -1,6 +1,8 @@
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <unordered_set>
+#include <utility>
 
 #include <dcl/odometry/preprocessing.hpp>
 #include <dcl/odometry/voxel_map.hpp>
@@ -31,6 +33,13 @@ std::vector<Eigen::Isometry3d> sweepPoses(const core::Vector6d& velocity, double
     poses[i] = core::expSE3((t_min + alpha * (t_max - t_min)) * velocity);
   }
   return poses;
+}
+
+/// The first and last point times of a sweep; none when points carry no times.
+std::optional<std::pair<double, double>> sweepSpan(const core::PointCloud& cloud) {
+  if (cloud.time.size() != cloud.size() || cloud.empty()) return std::nullopt;
+  const auto [t_min, t_max] = std::minmax_element(cloud.time.begin(), cloud.time.end());
+  return std::pair{static_cast<double>(*t_min), static_cast<double>(*t_max)};
 }
 
 }  // namespace
@@ -87,15 +96,13 @@ std::vector<Eigen::Vector3d> deskew(const core::PointCloud& cloud, const core::V
 }
 
 double sweepMidTime(const core::PointCloud& cloud) {
-  if (cloud.time.size() != cloud.size() || cloud.empty()) return 0.0;
-  const auto [t_min, t_max] = std::minmax_element(cloud.time.begin(), cloud.time.end());
-  return 0.5 * (static_cast<double>(*t_min) + static_cast<double>(*t_max));
+  const auto span = sweepSpan(cloud);
+  return span ? 0.5 * (span->first + span->second) : 0.0;
 }
 
 double sweepDuration(const core::PointCloud& cloud) {
-  if (cloud.time.size() != cloud.size() || cloud.empty()) return 0.0;
-  const auto [t_min, t_max] = std::minmax_element(cloud.time.begin(), cloud.time.end());
-  return static_cast<double>(*t_max) - static_cast<double>(*t_min);
+  const auto span = sweepSpan(cloud);
+  return span ? span->second - span->first : 0.0;
 }
 
 std::vector<Eigen::Vector3d> voxelDownsample(std::span<const Eigen::Vector3d> points,
