@@ -10,34 +10,8 @@
 namespace dcl::registration {
 namespace {
 
-constexpr std::uint64_t kEmpty = std::numeric_limits<std::uint64_t>::max();
 constexpr std::int64_t kAxisOffset = 1 << 20;  // voxel index -2^20..2^20-1 -> 0..2^21-1
-
-/// The packed key of the voxel holding `p` (21 bits an axis), or kEmpty when
-/// `p` is not finite or too far from the origin.
-std::uint64_t voxelKey(const Eigen::Vector3d& p, double inverse_size) {
-  std::uint64_t key = 0;
-  for (int axis = 0; axis < 3; ++axis) {
-    const double v = p[axis] * inverse_size;
-    if (!(std::abs(v) <= kMaxVoxelIndex)) return kEmpty;  // also catches NaN
-    // floor without a library call: truncate, then step down for negatives
-    auto index = static_cast<std::int64_t>(v);
-    if (v < static_cast<double>(index)) --index;
-    key = (key << 21) | static_cast<std::uint64_t>(index + kAxisOffset);
-  }
-  return key;
-}
-
-/// A well-mixed 64-bit hash (the finaliser of MurmurHash3): neighbouring voxels
-/// differ in a few low bits of each axis, which must spread over the table.
-std::uint64_t mix(std::uint64_t k) {
-  k ^= k >> 33;
-  k *= 0xff51afd7ed558ccdULL;
-  k ^= k >> 33;
-  k *= 0xc4ceb9fe1a85ec53ULL;
-  k ^= k >> 33;
-  return k;
-}
+constexpr std::uint64_t kEmpty = kNoVoxel;
 
 /// Sums per voxel in an open-addressing table (linear probing) that doubles
 /// when half full: a LiDAR scan has tens of times fewer voxels than points, so
@@ -75,7 +49,7 @@ class VoxelAccumulator {
   /// The slot holding `key`, or the empty slot where it belongs.
   [[nodiscard]] std::size_t find(std::uint64_t key) const {
     const std::size_t mask = keys_.size() - 1;
-    std::size_t i = mix(key) & mask;
+    std::size_t i = hashVoxelKey(key) & mask;
     while (keys_[i] != kEmpty && keys_[i] != key) i = (i + 1) & mask;
     return i;
   }
@@ -116,6 +90,37 @@ std::vector<Eigen::Vector3d> downsample(std::span<const Point> points, double vo
 }
 
 }  // namespace
+
+std::uint64_t voxelKey(const Eigen::Vector3d& p, double inverse_size) {
+  std::uint64_t key = 0;
+  for (int axis = 0; axis < 3; ++axis) {
+    const double v = p[axis] * inverse_size;
+    if (!(std::abs(v) <= kMaxVoxelIndex)) return kNoVoxel;  // also catches NaN
+    // floor without a library call: truncate, then step down for negatives
+    auto index = static_cast<std::int64_t>(v);
+    if (v < static_cast<double>(index)) --index;
+    key = (key << 21) | static_cast<std::uint64_t>(index + kAxisOffset);
+  }
+  return key;
+}
+
+Eigen::Vector3d voxelCorner(std::uint64_t key, double voxel_size) {
+  Eigen::Vector3d corner;
+  for (int axis = 2; axis >= 0; --axis, key >>= 21) {
+    corner[axis] =
+        static_cast<double>(static_cast<std::int64_t>(key & 0x1FFFFF) - kAxisOffset) * voxel_size;
+  }
+  return corner;
+}
+
+std::uint64_t hashVoxelKey(std::uint64_t key) {
+  key ^= key >> 33;
+  key *= 0xff51afd7ed558ccdULL;
+  key ^= key >> 33;
+  key *= 0xc4ceb9fe1a85ec53ULL;
+  key ^= key >> 33;
+  return key;
+}
 
 std::vector<Eigen::Vector3d> voxelDownsample(std::span<const Eigen::Vector3f> points,
                                              double voxel_size) {

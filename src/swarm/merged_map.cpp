@@ -4,6 +4,7 @@
 
 #include <dcl/core/error.hpp>
 #include <dcl/registration/cloud_codec.hpp>
+#include <dcl/registration/voxel_filter.hpp>
 #include <dcl/swarm/merged_map.hpp>
 
 namespace dcl::swarm {
@@ -18,20 +19,6 @@ constexpr int kZstdLevel = 3;
 /// an error of at most a fortieth of a voxel an axis.
 constexpr double kStepPerVoxel = 0.05;
 
-constexpr std::int64_t kAxisOffset = 1 << 20;  // voxel index -2^20..2^20-1 -> 0..2^21-1
-constexpr double kMaxIndex = 1048575.0;
-
-/// A well-mixed 64-bit hash (the finaliser of MurmurHash3): neighbouring voxels
-/// differ in a few low bits of each axis, which must spread over the table.
-std::uint64_t mix(std::uint64_t k) {
-  k ^= k >> 33;
-  k *= 0xff51afd7ed558ccdULL;
-  k ^= k >> 33;
-  k *= 0xc4ceb9fe1a85ec53ULL;
-  k ^= k >> 33;
-  return k;
-}
-
 /// Weighted point sums per voxel in an open-addressing table (linear
 /// probing) that doubles when half full. A map has millions of voxels, so the
 /// table holds only cell numbers, and a cell only what the result needs: its
@@ -42,7 +29,7 @@ std::uint64_t mix(std::uint64_t k) {
 class VoxelGrid {
  public:
   /// A grid of voxel edge `voxel` expecting about `cells` occupied voxels.
-  VoxelGrid(double voxel, std::size_t cells) : voxel_(voxel) {
+  VoxelGrid(double voxel, std::size_t cells) : voxel_(voxel), inverse_voxel_(1.0 / voxel) {
     cells_.reserve(cells);
     std::size_t size = 1024;
     while (size < 2 * cells) size *= 2;
@@ -51,16 +38,11 @@ class VoxelGrid {
 
   /// Adds `weight` points at `p`; a point not finite or beyond 2^20 voxels is skipped.
   void add(const Eigen::Vector3d& p, std::uint32_t weight, std::uint8_t robot) {
-    Eigen::Vector3d index;
-    std::uint64_t key = 0;
-    for (int axis = 0; axis < 3; ++axis) {
-      index[axis] = std::floor(p[axis] / voxel_);
-      if (!(std::abs(index[axis]) <= kMaxIndex)) return;  // also catches NaN
-      key = (key << 21) |
-            static_cast<std::uint64_t>(static_cast<std::int64_t>(index[axis]) + kAxisOffset);
-    }
+    const std::uint64_t key = registration::voxelKey(p, inverse_voxel_);
+    if (key == registration::kNoVoxel) return;
     Cell& c = cell(key);
-    c.sum += ((p - index * voxel_) * static_cast<double>(weight)).cast<float>();
+    c.sum += ((p - registration::voxelCorner(key, voxel_)) * static_cast<double>(weight))
+                 .cast<float>();
     c.weight += weight;
     if (weight > c.robot_weight) {
       c.robot_weight = weight;
@@ -75,7 +57,9 @@ class VoxelGrid {
     m.weights.reserve(cells_.size());
     m.robots.reserve(cells_.size());
     for (const Cell& c : cells_) {
-      m.points.push_back((corner(c.key) + c.sum.cast<double>() / c.weight).cast<float>());
+      m.points.push_back(
+          (registration::voxelCorner(c.key, voxel_) + c.sum.cast<double>() / c.weight)
+              .cast<float>());
       m.weights.push_back(c.weight);
       m.robots.push_back(c.robot);
     }
@@ -93,15 +77,6 @@ class VoxelGrid {
     std::uint8_t robot = 0;
   };
 
-  /// The corner (lowest coordinates) of the voxel with `key`.
-  [[nodiscard]] Eigen::Vector3d corner(std::uint64_t key) const {
-    Eigen::Vector3d c;
-    for (int axis = 2; axis >= 0; --axis, key >>= 21)
-      c[axis] =
-          static_cast<double>(static_cast<std::int64_t>(key & 0x1FFFFF) - kAxisOffset) * voxel_;
-    return c;
-  }
-
   Cell& cell(std::uint64_t key) {
     std::size_t i = find(key);
     if (table_[i] == kNone) {
@@ -118,7 +93,7 @@ class VoxelGrid {
   /// The table slot of `key`'s cell, or the empty slot where it goes.
   [[nodiscard]] std::size_t find(std::uint64_t key) const {
     const std::size_t mask = table_.size() - 1;
-    std::size_t i = mix(key) & mask;
+    std::size_t i = registration::hashVoxelKey(key) & mask;
     while (table_[i] != kNone && cells_[table_[i]].key != key) i = (i + 1) & mask;
     return i;
   }
@@ -130,6 +105,7 @@ class VoxelGrid {
   }
 
   double voxel_;
+  double inverse_voxel_;
   std::vector<std::uint32_t> table_;  ///< cell numbers, kNone where empty
   std::vector<Cell> cells_;
 };

@@ -2,6 +2,7 @@
 // idempotence, and bad input.
 
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <map>
 #include <tuple>
@@ -86,6 +87,35 @@ TEST(VoxelFilter, SkipsNonFiniteAndFarPointsAndRejectsBadSizes) {
   EXPECT_TRUE(voxelDownsample(std::vector<Eigen::Vector3d>{}, 0.5).empty());
   for (double bad : {0.0, -1.0, nan, inf})
     EXPECT_THROW(voxelDownsample(points, bad), core::Error) << bad;
+}
+
+TEST(VoxelKey, NamesTheVoxelItsCornerStartsOnRealScans) {
+  // Every point of a real scan lies in the voxel its key names, one key a voxel.
+  const core::PointCloud scan = test::kittiScan(0);
+  const double size = 0.4;
+  std::map<VoxelIndex, std::uint64_t> keys;
+  for (const Eigen::Vector3f& point : scan.points) {
+    const Eigen::Vector3d p = point.cast<double>();
+    const std::uint64_t key = voxelKey(p, 1.0 / size);
+    ASSERT_NE(key, kNoVoxel);
+    const Eigen::Vector3d corner = voxelCorner(key, size);
+    EXPECT_TRUE((p.array() >= corner.array() - 1e-9).all() &&
+                (p.array() < corner.array() + size + 1e-9).all())
+        << p.transpose() << " not in the voxel at " << corner.transpose();
+    const auto [it, inserted] = keys.emplace(voxelOf(p, size), key);
+    if (!inserted) {
+      EXPECT_EQ(it->second, key);
+    }
+  }
+  // Distinct voxels, distinct keys and (for these few) distinct hashes.
+  std::map<std::uint64_t, int> hashes;
+  for (const auto& [voxel, key] : keys) ++hashes[hashVoxelKey(key)];
+  EXPECT_EQ(hashes.size(), keys.size());
+  // Negative coordinates floor downwards; the last voxel on each side is kept, the next is not.
+  EXPECT_EQ(voxelCorner(voxelKey({-0.1, -2.0, 0.0}, 1.0), 1.0), Eigen::Vector3d(-1.0, -2.0, 0.0));
+  EXPECT_NE(voxelKey({kMaxVoxelIndex, -kMaxVoxelIndex, 0.0}, 1.0), kNoVoxel);
+  EXPECT_EQ(voxelKey({kMaxVoxelIndex + 1.0, 0.0, 0.0}, 1.0), kNoVoxel);
+  EXPECT_EQ(voxelKey({0.0, std::numeric_limits<double>::quiet_NaN(), 0.0}, 1.0), kNoVoxel);
 }
 
 }  // namespace
