@@ -9,8 +9,15 @@
 //
 // The paper assumes no communication range limit for these experiments ("messages
 // can be exchanged at any time"); so does this bench unless --range is given.
+//
+// One seed is one simulated world per preset: its city or campus, the noise
+// of its routes and its LiDAR units' calibration errors. --seeds runs every
+// preset in several and adds a table across them, so that a method is judged
+// on more than the one draw the presets' default seed makes.
+#include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -49,6 +56,9 @@ struct SystemOptions {
   std::vector<std::string> datasets{"kitti05-3", "kitti08-2", "kitti00-3", "campus-3"};
   std::string scale = "campus-9";  ///< the large-team preset ("none": skip)
   int scale_robots = 0;            ///< robots of the large-team run (0: the preset's)
+  /// Worlds to simulate each preset in (one city or campus, routes and sensor
+  /// units per seed); every preset is run once per seed.
+  std::vector<std::uint64_t> seeds{1};
   std::string work = "out/bench-system";
   std::string data;  ///< the shared data folder (KITTI ground truth)
   std::size_t max_frames = 0;
@@ -60,11 +70,18 @@ struct SystemOptions {
 };
 
 /// The dataset of `preset` in `folder`, simulated unless it is already there.
-std::string ensureDataset(const std::string& preset, int robots, const std::string& folder,
-                          const std::string& data) {
+std::string ensureDataset(const std::string& preset, int robots, std::uint64_t seed,
+                          const std::string& folder, const std::string& data) {
   if (fs::exists(fs::path(folder) / "dataset.yaml")) return folder;
-  sim::writeSimDataset(folder, sim::makePreset(preset, {.data_dir = data, .robots = robots}));
+  sim::writeSimDataset(
+      folder, sim::makePreset(preset, {.data_dir = data, .seed = seed, .robots = robots}));
   return folder;
+}
+
+/// The name of a preset's run in `seed`'s world: the preset's own for seed 1
+/// (the presets' default), "<preset>-s<seed>" for the others.
+std::string runName(const std::string& preset, std::uint64_t seed) {
+  return seed == 1 ? preset : fmt::format("{}-s{}", preset, seed);
 }
 
 std::optional<double> number(const Json& value) {
@@ -84,6 +101,12 @@ std::optional<double> improvement(const Json& robot, const char* full, const cha
   return 1.0 - *f / *o;
 }
 
+/// A fraction as a whole percentage, "-0 %" written as "0 %".
+std::string percent(double fraction) {
+  const double rounded = std::round(100.0 * fraction);
+  return fmt::format("{:.0f} %", rounded == 0.0 ? 0.0 : rounded);
+}
+
 double mean(const std::vector<double>& v) {
   double sum = 0.0;
   for (double x : v) sum += x;
@@ -92,6 +115,8 @@ double mean(const std::vector<double>& v) {
 
 struct DatasetRun {
   std::string name;
+  std::string preset;
+  std::uint64_t seed = 1;
   Json metrics;
   double seconds = 0.0;           ///< wall time of the run
   std::vector<RobotBound> bound;  ///< own SLAM, joint optimum and exact loops (bound.hpp)
@@ -121,13 +146,13 @@ std::string boundTables(const std::vector<const DatasetRun*>& runs) {
   for (const DatasetRun* run : runs) {
     const auto& b = run->bound;
     const auto vsOwn = [&](double RobotBound::*value) {
-      return fmt::format("{:.0f} % ({} of {} not below)",
-                         100.0 * meanLowered(b, value, &RobotBound::own_loops),
+      return fmt::format("{} ({} of {} not below)",
+                         percent(meanLowered(b, value, &RobotBound::own_loops)),
                          notBelow(b, value, &RobotBound::own_loops), b.size());
     };
-    out << fmt::format("| `{}` | {:.0f} % | {:.0f} % | {} | {} | {} |\n", run->name,
-                       100.0 * meanLowered(b, &RobotBound::own_loops, &RobotBound::odometry),
-                       100.0 * meanLowered(b, &RobotBound::run, &RobotBound::odometry),
+    out << fmt::format("| `{}` | {} | {} | {} | {} | {} |\n", run->name,
+                       percent(meanLowered(b, &RobotBound::own_loops, &RobotBound::odometry)),
+                       percent(meanLowered(b, &RobotBound::run, &RobotBound::odometry)),
                        vsOwn(&RobotBound::run), vsOwn(&RobotBound::optimum),
                        vsOwn(&RobotBound::exact));
   }
@@ -144,6 +169,8 @@ Json summaryOf(const DatasetRun& run) {
     receive.push_back(r["receive_kBps"].get<double>());
   }
   return {{"dataset", run.name},
+          {"preset", run.preset},
+          {"seed", run.seed},
           {"robots", run.metrics["robots"].size()},
           {"wall_s", run.seconds},
           {"duration_s", run.metrics["duration_s"]},
@@ -157,8 +184,45 @@ bool isKitti(const std::string& name) {
   return name.rfind("kitti", 0) == 0;
 }
 
+/// Per preset over its seeds' worlds: the ATE lowered against the odometry
+/// by the system and by the joint optimum of its graph, and the robots left
+/// above their odometry.
+std::string seedsTable(const std::vector<const DatasetRun*>& runs) {
+  std::ostringstream out;
+  out << "\nAcross seeds (each preset simulated in several worlds: its city or campus, its "
+         "routes' noise and its LiDAR units): mean ATE lowered against the odometry per seed, "
+         "their mean, and the robots not below their odometry\n\n"
+         "| preset | seeds | system, per seed | system, mean | robots not below | joint optimum, "
+         "mean | robots not below at the optimum |\n|---|---|---|---|---|---|---|\n";
+  std::vector<std::string> presets;
+  for (const DatasetRun* run : runs) {
+    if (std::find(presets.begin(), presets.end(), run->preset) == presets.end())
+      presets.push_back(run->preset);
+  }
+  for (const std::string& preset : presets) {
+    std::vector<double> system, optimum;
+    std::string per_seed;
+    std::size_t robots = 0, above = 0, above_optimum = 0;
+    for (const DatasetRun* run : runs) {
+      if (run->preset != preset) continue;
+      const auto& b = run->bound;
+      system.push_back(meanLowered(b, &RobotBound::run, &RobotBound::odometry));
+      optimum.push_back(meanLowered(b, &RobotBound::optimum, &RobotBound::odometry));
+      per_seed += fmt::format("{}{}", per_seed.empty() ? "" : " / ", percent(system.back()));
+      robots += b.size();
+      above += notBelow(b, &RobotBound::run, &RobotBound::odometry);
+      above_optimum += notBelow(b, &RobotBound::optimum, &RobotBound::odometry);
+    }
+    out << fmt::format("| `{}` | {} | {} | {} | {} of {} | {} | {} of {} |\n", preset,
+                       system.size(), per_seed, percent(mean(system)), above, robots,
+                       percent(mean(optimum)), above_optimum, robots);
+  }
+  return out.str();
+}
+
 /// Tables II/III (accuracy), IV (bandwidth) and the large-team summary, in Markdown.
-std::string tables(const std::vector<DatasetRun>& runs, const std::optional<DatasetRun>& scale) {
+std::string tables(const std::vector<DatasetRun>& runs, const std::vector<DatasetRun>& scales,
+                   bool across_seeds) {
   std::ostringstream out;
   out << "Accuracy (paper Tables II, III): ATE [m] and ARE [deg] per robot, odometry only -> "
          "whole system\n\n"
@@ -179,9 +243,9 @@ std::string tables(const std::vector<DatasetRun>& runs, const std::optional<Data
          "time |\n|---|---|---|---|---|---|\n";
   for (const DatasetRun& run : runs) {
     const Json s = summaryOf(run);
-    out << fmt::format("| `{}` | {} | {:.3f} m | {:.0f} % | {:.0f} s | {:.0f} s |\n", run.name,
+    out << fmt::format("| `{}` | {} | {:.3f} m | {} | {:.0f} s | {:.0f} s |\n", run.name,
                        s["robots"].get<std::size_t>(), s["ate_rmse_mean"].get<double>(),
-                       100.0 * s["ate_improvement_mean"].get<double>(), run.seconds,
+                       percent(s["ate_improvement_mean"].get<double>()), run.seconds,
                        s["duration_s"].get<double>());
   }
   out << "\nBandwidth (paper Table IV): average transmitted data per robot [kB/s] and "
@@ -202,27 +266,32 @@ std::string tables(const std::vector<DatasetRun>& runs, const std::optional<Data
   }
   std::vector<const DatasetRun*> all;
   for (const DatasetRun& run : runs) all.push_back(&run);
-  if (scale) all.push_back(&*scale);
+  for (const DatasetRun& run : scales) all.push_back(&run);
   out << boundTables(all);
-  if (scale) {
-    const Json s = summaryOf(*scale);
+  if (!scales.empty()) {
     out << fmt::format(
         "\nLarge team (paper §IV-E, 9 robots: ATE 1.83 m, transmit {:.2f} kB/s, receive {:.2f} "
         "kB/s)\n\n| dataset | robots | mean ATE system | mean ATE lowered by | transmit kB/s "
-        "| receive kB/s | run wall time |\n|---|---|---|---|---|---|---|\n"
-        "| `{}` | {} | {:.3f} m | {:.0f} % | {:.1f} | {:.1f} | {:.0f} s |\n",
-        kPaperLargeTeamTransmit, kPaperLargeTeamReceive, scale->name,
-        s["robots"].get<std::size_t>(), s["ate_rmse_mean"].get<double>(),
-        100.0 * s["ate_improvement_mean"].get<double>(), s["transmit_kBps_mean"].get<double>(),
-        s["receive_kBps_mean"].get<double>(), scale->seconds);
+        "| receive kB/s | run wall time |\n|---|---|---|---|---|---|---|\n",
+        kPaperLargeTeamTransmit, kPaperLargeTeamReceive);
+    for (const DatasetRun& scale : scales) {
+      const Json s = summaryOf(scale);
+      out << fmt::format("| `{}` | {} | {:.3f} m | {} | {:.1f} | {:.1f} | {:.0f} s |\n",
+                         scale.name, s["robots"].get<std::size_t>(),
+                         s["ate_rmse_mean"].get<double>(),
+                         percent(s["ate_improvement_mean"].get<double>()),
+                         s["transmit_kBps_mean"].get<double>(),
+                         s["receive_kBps_mean"].get<double>(), scale.seconds);
+    }
   }
+  if (across_seeds) out << seedsTable(all);
   return out.str();
 }
 
-DatasetRun runOne(const std::string& preset, int robots, const std::string& name,
-                  const SystemOptions& o, const AppConfig& config) {
+DatasetRun runOne(const std::string& preset, int robots, std::uint64_t seed,
+                  const std::string& name, const SystemOptions& o, const AppConfig& config) {
   const std::string folder =
-      ensureDataset(preset, robots, (fs::path(o.work) / name).string(), o.data);
+      ensureDataset(preset, robots, seed, (fs::path(o.work) / name).string(), o.data);
   AppConfig c = config;
   c.radio.range = o.range;
   const auto start = std::chrono::steady_clock::now();
@@ -230,29 +299,34 @@ DatasetRun runOne(const std::string& preset, int robots, const std::string& name
                                  o.max_frames, o.threads, o.settle, c);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return {name, std::move(metrics), seconds,
+  return {name, preset, seed, std::move(metrics), seconds,
           computeBound((fs::path(o.work) / (name + "-run")).string(), folder)};
 }
 
 void runSystem(const SystemOptions& o, const AppConfig& config) {
   if (o.threads < 0) throw core::Error("--threads must be at least 0");
   if (!(o.range >= 0.0)) throw core::Error("--range must be zero (unlimited) or positive");
+  if (o.seeds.empty()) throw core::Error("--seeds needs at least one seed");
   for (const std::string& name : o.datasets) {
     if (name == "none") continue;
     sim::makePreset(name, {.data_dir = o.data});  // an unknown name or missing data: fail early
   }
   std::vector<DatasetRun> runs;
-  for (const std::string& name : o.datasets) {
-    if (name == "none") continue;
-    runs.push_back(runOne(name, 0, name, o, config));
+  std::vector<DatasetRun> scales;
+  for (const std::uint64_t seed : o.seeds) {
+    for (const std::string& preset : o.datasets) {
+      if (preset == "none") continue;
+      runs.push_back(runOne(preset, 0, seed, runName(preset, seed), o, config));
+    }
+    if (o.scale != "none") {
+      const std::string preset =
+          o.scale_robots > 0 ? fmt::format("{}-{}", o.scale, o.scale_robots) : o.scale;
+      scales.push_back(
+          runOne(o.scale, o.scale_robots, seed, runName(preset, seed), o, config));
+      scales.back().preset = preset + " (large team)";
+    }
   }
-  std::optional<DatasetRun> scale;
-  if (o.scale != "none") {
-    const std::string name =
-        o.scale_robots > 0 ? fmt::format("{}-{}", o.scale, o.scale_robots) : o.scale;
-    scale = runOne(o.scale, o.scale_robots, name, o, config);
-  }
-  const std::string text = tables(runs, scale);
+  const std::string text = tables(runs, scales, o.seeds.size() > 1);
   if (!o.markdown.empty()) io::writeFileAtomic(o.markdown, [&](std::ostream& out) { out << text; });
   if (!o.json) return fmt::print("{}", text);
   const auto boundJson = [](const DatasetRun& run) {
@@ -272,10 +346,10 @@ void runSystem(const SystemOptions& o, const AppConfig& config) {
     all.push_back(
         {{"summary", summaryOf(run)}, {"bound", boundJson(run)}, {"metrics", run.metrics}});
   }
-  Json j = {{"datasets", all}};
-  if (scale) {
-    j["scale"] = {
-        {"summary", summaryOf(*scale)}, {"bound", boundJson(*scale)}, {"metrics", scale->metrics}};
+  Json j = {{"datasets", all}, {"scale", Json::array()}};
+  for (const DatasetRun& scale : scales) {
+    j["scale"].push_back(
+        {{"summary", summaryOf(scale)}, {"bound", boundJson(scale)}, {"metrics", scale.metrics}});
   }
   fmt::print("{}\n", j.dump(2));
 }
@@ -295,6 +369,12 @@ void addBenchSystemCommand(CLI::App& bench, const AppConfig& config) {
   cmd->add_option("--scale", o->scale, "the large-team preset (none: skip)")->capture_default_str();
   cmd->add_option("--scale-robots", o->scale_robots,
                   "robots of the large-team run (0: the preset's; e.g. 27)")
+      ->capture_default_str();
+  cmd->add_option("--seeds", o->seeds,
+                  "worlds to simulate each preset in, e.g. 1,2,3 (1: the presets' own; the "
+                  "others' folders are named <preset>-s<seed>)")
+      ->delimiter(',')
+      ->check(CLI::PositiveNumber)
       ->capture_default_str();
   cmd->add_option("--work", o->work, "folder for the datasets (simulated once) and the runs")
       ->capture_default_str();

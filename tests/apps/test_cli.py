@@ -686,6 +686,30 @@ class Simulate(unittest.TestCase):
         self.assertAlmostEqual(result["realtime_factor"], result["scans_per_s"] / 10.0)
 
 
+    def test_bench_system_runs_each_preset_in_every_seed(self):
+        work, table = self.path("work"), self.path("system.md")
+        _, out, _ = run("bench", "system", "--datasets", "demo", "--scale", "none", "--seeds",
+                        "1,2", "--max-frames", "40", "--threads", "2", "--work", work,
+                        "--markdown", table, "--json")
+        runs = json.loads(out)["datasets"]
+        self.assertEqual([(r["summary"]["dataset"], r["summary"]["seed"]) for r in runs],
+                         [("demo", 1), ("demo-s2", 2)])
+        for name, seed in (("demo", 1), ("demo-s2", 2)):
+            with open(os.path.join(work, name, "dataset.yaml")) as f:
+                self.assertRegex(f.read(), rf"\n  seed: {seed}\b")
+            self.assertTrue(os.path.isfile(os.path.join(work, name + "-run", "metrics.json")))
+        # Two worlds: the same robot's odometry errs otherwise in each.
+        self.assertNotEqual(runs[0]["metrics"]["robots"][0]["ate_rmse_odometry_only"],
+                            runs[1]["metrics"]["robots"][0]["ate_rmse_odometry_only"])
+        with open(table) as f:
+            text = f.read()
+        self.assertIn("Across seeds", text)
+        self.assertRegex(text, r"\| `demo` \| 2 \| -?\d+ % / -?\d+ % \| -?\d+ % \| \d of 6 \|")
+        code, _, err = run("bench", "system", "--datasets", "demo", "--seeds", "0", "--work",
+                           work, check=False)
+        self.assertNotEqual(code, 0)
+        self.assertIn("--seeds", err)
+
 
 class Place(DemoDataset):
     """dcl-slam bench place: inter-robot place recognition on the demo swarm."""
