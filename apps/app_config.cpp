@@ -48,6 +48,7 @@ robot::RobotConfig robotConfig(const AppConfig& c) {
   r.candidate_spacing = static_cast<std::uint64_t>(std::max(c.robot.candidate_spacing, 1));
   r.loop_sigma_translation = c.robot.loop_sigma_translation;
   r.loop_sigma_rotation = c.robot.loop_sigma_rotation;
+  r.loop_sigma_tilt = c.robot.loop_sigma_tilt;
   r.optimise_period = c.robot.optimise_period;
   r.round_timeout = c.robot.round_timeout;
   r.announce_period = c.robot.announce_period;
@@ -92,7 +93,8 @@ void validate(const AppConfig& config, const std::string& source) {
   });
   for (const auto& [key, value] :
        {std::pair{"robot.loop_sigma_translation", config.robot.loop_sigma_translation},
-        std::pair{"robot.loop_sigma_rotation", config.robot.loop_sigma_rotation}}) {
+        std::pair{"robot.loop_sigma_rotation", config.robot.loop_sigma_rotation},
+        std::pair{"robot.loop_sigma_tilt", config.robot.loop_sigma_tilt}}) {
     checkField(source, key, [value] {
       if (!(value >= 0.0) || !std::isfinite(value)) throw core::Error("must be finite and >= 0");
     });

@@ -74,6 +74,7 @@ struct RobotSection {
   int candidate_spacing = 3;  ///< own keyframes between two candidates to one neighbour, at least
   double loop_sigma_translation = 0.02;  ///< m, added to every verified loop's covariance
   double loop_sigma_rotation = 0.0035;   ///< rad, likewise
+  double loop_sigma_tilt = 0.0;  ///< rad, instead about the keyframe's x and y axes when larger
   bool solve_alone = true;  ///< with no one to optimise with, solve against the last round's values
   bool hold_absent =
       true;  ///< in a round, hold the loops to absent neighbours where they were left
@@ -94,6 +95,8 @@ struct RobotSection {
     v.field("loop_sigma_translation", loop_sigma_translation,
             "m, noise added to every verified loop (the registration's covariance is optimistic)");
     v.field("loop_sigma_rotation", loop_sigma_rotation, "rad, likewise");
+    v.field("loop_sigma_tilt", loop_sigma_tilt,
+            "rad, instead about the keyframe's x and y axes (roll, pitch) when larger");
     v.field("solve_alone", solve_alone,
             "with no one in range to optimise with, solve the own graph against the "
             "neighbours' poses as the last round left them");

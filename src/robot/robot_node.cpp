@@ -60,7 +60,8 @@ void validate(const RobotConfig& config) {
     throw core::Error("robot config: candidate_spacing must be at least 1");
   for (const auto& [name, value] :
        {std::pair{"loop_sigma_translation", config.loop_sigma_translation},
-        std::pair{"loop_sigma_rotation", config.loop_sigma_rotation}}) {
+        std::pair{"loop_sigma_rotation", config.loop_sigma_rotation},
+        std::pair{"loop_sigma_tilt", config.loop_sigma_tilt}}) {
     if (!(value >= 0.0) || !std::isfinite(value))
       throw core::Error(std::string("robot config: ") + name + " must be a finite number >= 0");
   }
@@ -387,8 +388,9 @@ struct RobotNode::Impl {
     answer.covariance = v.covariance;
     answer.covariance.diagonal().head<3>().array() +=
         config.loop_sigma_translation * config.loop_sigma_translation;
-    answer.covariance.diagonal().tail<3>().array() +=
-        config.loop_sigma_rotation * config.loop_sigma_rotation;
+    const double tilt = std::max(config.loop_sigma_tilt, config.loop_sigma_rotation);
+    answer.covariance.diagonal().tail<3>() += Eigen::Vector3d(
+        tilt * tilt, tilt * tilt, config.loop_sigma_rotation * config.loop_sigma_rotation);
     return answer;
   }
 

@@ -167,6 +167,36 @@ eval::RunSummary summaryOf(const SwarmRun& run) {
   return s;
 }
 
+TEST(RobotNode, LoopTiltNoiseLoosensRollAndPitchOnly) {
+  // The loops' covariances are in the verifying keyframe's frame: x forward,
+  // y left, z up. With loop_sigma_tilt the roll and pitch variances carry its
+  // square; yaw and translation keep their own noise.
+  RobotConfig config;
+  config.loop_sigma_tilt = 0.05;
+  const SwarmRun run = drive(convoy(), {}, 10.0, config);
+  std::size_t checked = 0;
+  for (const InterLoop& loop : run.nodes[0]->interLoops()) {
+    if (!loop.accepted) continue;
+    // As the peers decode it: the wire rounds the covariance to a few digits.
+    const core::Matrix6d covariance = loop.factor.information.inverse();
+    const double tilt = 0.05 * 0.05;
+    EXPECT_GE(covariance(3, 3), 0.99 * tilt);
+    EXPECT_GE(covariance(4, 4), 0.99 * tilt);
+    EXPECT_GE(covariance(5, 5), 0.99 * config.loop_sigma_rotation * config.loop_sigma_rotation);
+    EXPECT_LT(covariance(5, 5), 0.1 * tilt);
+    for (int axis = 0; axis < 3; ++axis) {
+      EXPECT_GE(covariance(axis, axis),
+                0.99 * config.loop_sigma_translation * config.loop_sigma_translation);
+      EXPECT_LT(covariance(axis, axis), 0.25 * tilt) << "translation axis " << axis;
+    }
+    ++checked;
+  }
+  EXPECT_GE(checked, 3u);
+  EXPECT_EQ(accepted(*run.nodes[0]), accepted(*run.nodes[1]));
+  config.loop_sigma_tilt = -1.0;
+  EXPECT_THROW(RobotNode(run.radio->endpoint(core::RobotId(7)), config), core::Error);
+}
+
 TEST(RobotNode, OptimisationRoundsPutTheRobotsInOneFrame) {
   const SwarmRun& run = defaultRun();
   for (const auto& node : run.nodes) {
