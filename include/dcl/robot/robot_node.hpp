@@ -115,9 +115,10 @@ struct RobotConfig {
   /// and pitch, its loosest directions, and bends the partner's height along
   /// its route. At 0.2 rad the loops tie position and heading only (as the
   /// 4-DoF loops of visual-inertial systems do) and each robot keeps its own
-  /// roll and pitch: over four simulated worlds of each preset fewer robots
-  /// end above their odometry, but the robots' maps agree less well in tilt
-  /// (BENCHMARKS.md, "Across worlds"). 0: as loop_sigma_rotation.
+  /// roll and pitch: over four simulated worlds of each preset that helps the
+  /// three-robot swarms, not the nine-robot campus, and the robots' maps
+  /// agree less well in tilt (BENCHMARKS.md, "Across worlds"). 0: as
+  /// loop_sigma_rotation.
   double loop_sigma_tilt = 0.0;
   /// s from the start of one optimisation round to the start of the next, at
   /// least: a group optimises at most once a period, however fast its
