@@ -73,8 +73,8 @@ struct SystemOptions {
 std::string ensureDataset(const std::string& preset, int robots, std::uint64_t seed,
                           const std::string& folder, const std::string& data) {
   if (fs::exists(fs::path(folder) / "dataset.yaml")) return folder;
-  sim::writeSimDataset(
-      folder, sim::makePreset(preset, {.data_dir = data, .seed = seed, .robots = robots}));
+  sim::writeSimDataset(folder,
+                       sim::makePreset(preset, {.data_dir = data, .seed = seed, .robots = robots}));
   return folder;
 }
 
@@ -276,9 +276,8 @@ std::string tables(const std::vector<DatasetRun>& runs, const std::vector<Datase
         kPaperLargeTeamTransmit, kPaperLargeTeamReceive);
     for (const DatasetRun& scale : scales) {
       const Json s = summaryOf(scale);
-      out << fmt::format("| `{}` | {} | {:.3f} m | {} | {:.1f} | {:.1f} | {:.0f} s |\n",
-                         scale.name, s["robots"].get<std::size_t>(),
-                         s["ate_rmse_mean"].get<double>(),
+      out << fmt::format("| `{}` | {} | {:.3f} m | {} | {:.1f} | {:.1f} | {:.0f} s |\n", scale.name,
+                         s["robots"].get<std::size_t>(), s["ate_rmse_mean"].get<double>(),
                          percent(s["ate_improvement_mean"].get<double>()),
                          s["transmit_kBps_mean"].get<double>(),
                          s["receive_kBps_mean"].get<double>(), scale.seconds);
@@ -299,8 +298,9 @@ DatasetRun runOne(const std::string& preset, int robots, std::uint64_t seed,
                                  o.max_frames, o.threads, o.settle, c);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return {name, preset, seed, std::move(metrics), seconds,
-          computeBound((fs::path(o.work) / (name + "-run")).string(), folder)};
+  DatasetRun run{name, preset, seed, std::move(metrics), seconds, {}};
+  run.bound = computeBound((fs::path(o.work) / (name + "-run")).string(), folder);
+  return run;
 }
 
 void runSystem(const SystemOptions& o, const AppConfig& config) {
@@ -321,8 +321,7 @@ void runSystem(const SystemOptions& o, const AppConfig& config) {
     if (o.scale != "none") {
       const std::string preset =
           o.scale_robots > 0 ? fmt::format("{}-{}", o.scale, o.scale_robots) : o.scale;
-      scales.push_back(
-          runOne(o.scale, o.scale_robots, seed, runName(preset, seed), o, config));
+      scales.push_back(runOne(o.scale, o.scale_robots, seed, runName(preset, seed), o, config));
       scales.back().preset = preset + " (large team)";
     }
   }

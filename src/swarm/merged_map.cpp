@@ -41,8 +41,8 @@ class VoxelGrid {
     const std::uint64_t key = registration::voxelKey(p, inverse_voxel_);
     if (key == registration::kNoVoxel) return;
     Cell& c = cell(key);
-    c.sum += ((p - registration::voxelCorner(key, voxel_)) * static_cast<double>(weight))
-                 .cast<float>();
+    c.sum +=
+        ((p - registration::voxelCorner(key, voxel_)) * static_cast<double>(weight)).cast<float>();
     c.weight += weight;
     if (weight > c.robot_weight) {
       c.robot_weight = weight;
