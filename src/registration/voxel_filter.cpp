@@ -11,7 +11,7 @@ namespace dcl::registration {
 namespace {
 
 constexpr std::int64_t kAxisOffset = 1 << 20;  // voxel index -2^20..2^20-1 -> 0..2^21-1
-constexpr std::uint64_t kEmpty = kNoVoxel;
+constexpr std::uint64_t kEmpty = kNoVoxel;     // an empty slot holds the key no voxel has
 
 /// Sums per voxel in an open-addressing table (linear probing) that doubles
 /// when half full: a LiDAR scan has tens of times fewer voxels than points, so
@@ -84,7 +84,7 @@ std::vector<Eigen::Vector3d> downsample(std::span<const Point> points, double vo
   for (const Point& point : points) {
     const Eigen::Vector3d p = point.template cast<double>();
     const std::uint64_t key = voxelKey(p, inverse_size);
-    if (key != kEmpty) accumulator.add(key, p);
+    if (key != kNoVoxel) accumulator.add(key, p);
   }
   return accumulator.centroids();
 }
