@@ -103,23 +103,39 @@ void PairwiseConsistency::addRobotFactor(const Factor& factor) {
   decided_ = false;   // a loop may be reached, or the trees changed
 }
 
-bool PairwiseConsistency::addLoop(const Factor& loop) {
+PairwiseConsistency::Candidate PairwiseConsistency::candidateOf(const Factor& loop) const {
   const LoopId id = loopId(loop);
   if (id.first.robot != robot_a_.robot() || id.second.robot != robot_b_.robot()) {
     throw core::Error(fmt::format(
         "PCM {}-{}: loop {} -> {} is not between these robots", core::robotName(robot_a_.robot()),
         core::robotName(robot_b_.robot()), keyName(loop.from), keyName(loop.to)));
   }
-  if (index_.contains(id)) return false;
   Candidate c{loop.from.robot == robot_a_.robot() ? loop : invertFactor(loop),
               core::Matrix6d::Zero(), core::Matrix6d::Zero(), std::nullopt};
   c.covariance = covarianceOf(c.loop.information);
   c.inverse_covariance = transported(core::adjoint(c.loop.T_from_to), c.covariance);
+  return c;
+}
+
+bool PairwiseConsistency::addLoop(const Factor& loop) {
+  Candidate c = candidateOf(loop);
+  const LoopId id = loopId(loop);
+  if (index_.contains(id)) return false;
   candidates_.push_back(c);
   index_.emplace(id, candidates_.size() - 1);
   decided_ = false;
   syncTrajectories();
   if (reachable(c.loop)) check(candidates_.size() - 1);
+  return true;
+}
+
+bool PairwiseConsistency::replaceLoop(const Factor& loop) {
+  Candidate c = candidateOf(loop);
+  const auto it = index_.find(loopId(loop));
+  if (it == index_.end()) return false;
+  candidates_[it->second] = std::move(c);
+  resetChecks();
+  decided_ = false;
   return true;
 }
 
@@ -132,6 +148,10 @@ void PairwiseConsistency::syncTrajectories() {
   if (revisions == revisions_) return;
   // Relative poses changed: every pair is checked again.
   revisions_ = revisions;
+  resetChecks();
+}
+
+void PairwiseConsistency::resetChecks() {
   for (Candidate& c : candidates_) c.vertex.reset();
   vertex_candidate_.clear();
   graph_ = AdjacencyGraph();

@@ -288,6 +288,45 @@ TEST(PairwiseConsistency, KeepsTheTrueLoopsAndRejectsTheWrongOnes) {
                core::Error);
 }
 
+TEST(PairwiseConsistency, AReplacedLoopIsCheckedAgainWithEveryOther) {
+  // A loop measured twice (both robots verified the place): the copy put in
+  // its place is the one judged, and nothing of the first copy's checks stays.
+  const TwoRobots s;
+  PairwiseConsistency pcm(core::RobotId(0), core::RobotId(1));
+  for (const Factor& f : s.odometry) pcm.addRobotFactor(f);
+  for (const Factor& f : s.loops) pcm.addLoop(f);
+  const std::set<LoopId> all = idsOf(s.loops);
+  ASSERT_EQ(idsOf(pcm.decide().accepted), all);
+
+  Factor wrong = s.loops[3];
+  wrong.T_from_to =
+      wrong.T_from_to * core::makePose(Eigen::Vector3d(4, -3, 0), Eigen::Matrix3d::Identity());
+  EXPECT_TRUE(pcm.replaceLoop(wrong));
+  const PcmDecision after_wrong = pcm.decide();
+  EXPECT_EQ(idsOf(after_wrong.rejected), std::set<LoopId>{loopId(wrong)});
+  EXPECT_EQ(after_wrong.accepted.size(), s.loops.size() - 1);
+  // The held copy is the new one, oriented from robot a.
+  const std::vector<Factor> loops = pcm.loops();
+  const auto held = std::find_if(loops.begin(), loops.end(),
+                                 [&](const Factor& f) { return loopId(f) == loopId(wrong); });
+  ASSERT_NE(held, loops.end());
+  EXPECT_TRUE(held->T_from_to.isApprox(wrong.T_from_to, 1e-12));
+
+  // The true measurement back, as robot b measured it: accepted again, and
+  // the decision is the one before.
+  EXPECT_TRUE(pcm.replaceLoop(invertFactor(s.loops[3])));
+  const PcmDecision& again = pcm.decide();
+  EXPECT_EQ(idsOf(again.accepted), all);
+  EXPECT_TRUE(again.rejected.empty());
+
+  // Nothing held between those keyframes: ignored; not between the robots: refused.
+  EXPECT_FALSE(pcm.replaceLoop({key(0, 1), key(1, 999), Eigen::Isometry3d::Identity(),
+                                core::Matrix6d::Identity(), FactorKind::inter_loop}));
+  EXPECT_THROW(pcm.replaceLoop({key(0, 1), key(2, 1), Eigen::Isometry3d::Identity(),
+                                core::Matrix6d::Identity(), FactorKind::inter_loop}),
+               core::Error);
+}
+
 TEST(PairwiseConsistency, HoldsBackAConsistentSetFromAFewNeighbouringKeyframes) {
   // Three loops from neighbouring keyframes, all wrong by the same offset (a
   // repeated block seen three times): they agree with each other, and nothing

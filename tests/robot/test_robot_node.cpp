@@ -131,6 +131,42 @@ TEST(RobotNode, FindsVerifiesAndAgreesOnInterRobotLoops) {
   }
 }
 
+TEST(RobotNode, APlaceVerifiedByBothRobotsIsOneFactorTheyBothHold) {
+  // b comes into range late: each robot then gets the other's backlog of
+  // descriptors, finds the same places, and sends the other candidates for
+  // them, so both verify some keyframe pairs: two measurements of one pair.
+  // Both robots keep the lower robot's, whatever order they came in, or a
+  // round optimises a different factor on each side.
+  constexpr std::size_t kArrive = 100;  // frames; three pairs are verified twice
+  const SwarmRun run =
+      drive(convoy(), {}, 10.0, {}, std::numeric_limits<std::size_t>::max(), {}, {0, kArrive});
+  const RobotNode& a = *run.nodes[0];
+  const RobotNode& b = *run.nodes[1];
+  const auto twice = [](const RobotNode& node) {
+    double sum = 0.0;
+    for (const char* name : {"inter_loops_replaced", "inter_loops_measured_twice"}) {
+      const auto it = node.counters().find(name);
+      if (it != node.counters().end()) sum += it->second;
+    }
+    return sum;
+  };
+  std::printf("measured twice: %g, %g of %zu loops\n", twice(a), twice(b), a.interLoops().size());
+  EXPECT_GT(twice(a), 0.0);
+  EXPECT_EQ(twice(a), twice(b));
+  std::map<backend::LoopId, backend::Factor> held_by_b;
+  for (const InterLoop& loop : b.interLoops())
+    held_by_b.emplace(backend::loopId(loop.factor), loop.factor);
+  ASSERT_EQ(held_by_b.size(), b.interLoops().size());
+  ASSERT_EQ(a.interLoops().size(), b.interLoops().size());
+  for (const InterLoop& loop : a.interLoops()) {
+    const auto it = held_by_b.find(backend::loopId(loop.factor));
+    ASSERT_NE(it, held_by_b.end());
+    EXPECT_EQ(it->second.from, loop.factor.from);  // the same orientation: the same verifier
+    EXPECT_TRUE(it->second.T_from_to.isApprox(loop.factor.T_from_to, 0.0));
+    EXPECT_EQ(it->second.information, loop.factor.information);
+  }
+}
+
 TEST(RobotNode, AcceptedLoopsMeasureTheTrueRelativePose) {
   const SwarmRun& run = defaultRun();
   std::size_t checked = 0;

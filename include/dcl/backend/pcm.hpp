@@ -136,6 +136,12 @@ class PairwiseConsistency {
   /// that is not between these two robots.
   bool addLoop(const Factor& loop);
 
+  /// Puts `loop` (either orientation) in place of the loop held between the
+  /// same two keyframes, and checks every loop again (the next decide()).
+  /// Returns false, and ignores it, when no such loop is held. Throws
+  /// core::Error for a factor that is not between these two robots.
+  bool replaceLoop(const Factor& loop);
+
   /// The current decision (valid until the next add). Loops whose keyframes
   /// the trajectories did not reach when they were added are checked now if
   /// they reach them.
@@ -156,8 +162,12 @@ class PairwiseConsistency {
     core::Matrix6d inverse_covariance;  ///< of its inverse, Ad(T) Sigma Ad(T)^T
     std::optional<std::size_t> vertex;  ///< in the consistency graph, once checked
   };
+  /// `loop` oriented from robot a, unchecked; throws for a loop not between the two robots.
+  Candidate candidateOf(const Factor& loop) const;
   bool reachable(const Factor& loop) const;
   void syncTrajectories();
+  /// Forgets every consistency check (the loops stay): decide() checks them again.
+  void resetChecks();
   void check(std::size_t index);
   double distance(const Candidate& first, const Candidate& second) const;
   std::vector<std::size_t> canonicalOrder() const;
