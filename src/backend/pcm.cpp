@@ -118,14 +118,13 @@ PairwiseConsistency::Candidate PairwiseConsistency::candidateOf(const Factor& lo
 }
 
 bool PairwiseConsistency::addLoop(const Factor& loop) {
-  Candidate c = candidateOf(loop);
   const LoopId id = loopId(loop);
-  if (index_.contains(id)) return false;
-  candidates_.push_back(c);
+  if (index_.contains(id)) return false;  // held loops are all between these robots
+  candidates_.push_back(candidateOf(loop));
   index_.emplace(id, candidates_.size() - 1);
   decided_ = false;
   syncTrajectories();
-  if (reachable(c.loop)) check(candidates_.size() - 1);
+  if (reachable(candidates_.back().loop)) check(candidates_.size() - 1);
   return true;
 }
 
