@@ -4,12 +4,16 @@
 // graph and map, the merged map coloured by robot, metrics.json and report.html.
 #include <algorithm>
 #include <array>
+#include <charconv>
+#include <cmath>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
 
 #include <dcl/backend/pose_graph.hpp>
@@ -41,10 +45,42 @@ struct RunOptions {
   std::size_t max_frames = 0;                   ///< scans per robot, 0: all
   int threads = 0;                              ///< 0: every core
   double settle = swarm::SwarmConfig{}.settle;  ///< s at most after the data while robots optimise
+  std::vector<std::string> leave;               ///< NAME@SECONDS, robots that leave mid-run
   bool json = false;
 };
 
-std::vector<swarm::SwarmMember> membersOf(const io::DatasetSpec& spec) {
+/// The robots that leave mid-run, by name, from `--leave NAME@SECONDS`
+/// options; throws core::Error naming the option value that is not one.
+std::map<std::string, double> parseLeaves(const std::vector<std::string>& values,
+                                          const io::DatasetSpec& spec) {
+  std::map<std::string, double> out;
+  for (const std::string& value : values) {
+    const std::size_t at = value.rfind('@');
+    const auto fail = [&value](const std::string& why) {
+      throw core::Error(fmt::format("--leave '{}': {}", value, why));
+    };
+    if (at == std::string::npos) fail("expected NAME@SECONDS, e.g. b@60");
+    const std::string name = value.substr(0, at);
+    const std::string time = value.substr(at + 1);
+    if (std::none_of(spec.robots.begin(), spec.robots.end(),
+                     [&name](const io::RobotSpec& r) { return r.name == name; })) {
+      std::vector<std::string> names;
+      for (const io::RobotSpec& r : spec.robots) names.push_back(r.name);
+      fail(fmt::format("no robot '{}' in the dataset (its robots: {})", name,
+                       fmt::join(names, ", ")));
+    }
+    double seconds = 0.0;
+    const char* end = time.data() + time.size();
+    const auto [ptr, ec] = std::from_chars(time.data(), end, seconds);
+    if (time.empty() || ec != std::errc() || ptr != end || !std::isfinite(seconds) || seconds < 0.0)
+      fail(fmt::format("'{}' is not a time in seconds at or after the run's start", time));
+    if (!out.emplace(name, seconds).second) fail(fmt::format("robot '{}' leaves twice", name));
+  }
+  return out;
+}
+
+std::vector<swarm::SwarmMember> membersOf(const io::DatasetSpec& spec,
+                                          const std::map<std::string, double>& leave) {
   std::vector<std::unique_ptr<io::ScanSource>> scans = sim::openDatasetScans(spec);
   std::vector<swarm::SwarmMember> members;
   for (std::size_t r = 0; r < spec.robots.size(); ++r) {
@@ -52,6 +88,8 @@ std::vector<swarm::SwarmMember> membersOf(const io::DatasetSpec& spec) {
     if (!spec.robots[r].ground_truth.empty()) truth = io::readGroundTruth(spec, r);
     members.push_back({spec.robots[r].name, std::move(scans[r]), spec.robots[r].start_time,
                        std::move(truth), std::nullopt});
+    if (const auto it = leave.find(spec.robots[r].name); it != leave.end())
+      members.back().leave_time = it->second;
   }
   return members;
 }
@@ -236,15 +274,22 @@ void printRunTable(const Json& m, const std::string& out) {
         static_cast<double>(r["bytes_sent"].get<std::size_t>()) / 1000.0);
   }
   printFrames(m);
+  for (const Json& r : m["robots"]) {
+    if (r.contains("left_at_s") && !r["left_at_s"].is_null())
+      fmt::print("{} left the swarm at {} s: its outputs are what it held then\n",
+                 r["name"].get<std::string>(), r["left_at_s"].get<double>());
+  }
   fmt::print("outputs in {} ({}metrics.json, report.html, one folder per robot)\n", out,
              m["map_points"].get<std::size_t>() > 0 ? "map.ply, " : "");
 }
 
 Json runSwarmDataset(const std::string& dataset, const std::string& out, std::size_t max_frames,
-                     int threads, double settle, const AppConfig& config) {
-  const RunOptions o{dataset, out, max_frames, threads, settle, false};
+                     int threads, double settle, const AppConfig& config,
+                     const std::vector<std::string>& leave) {
+  const RunOptions o{dataset, out, max_frames, threads, settle, leave, false};
   const io::DatasetSpec spec = io::readDataset(o.dataset);
-  std::vector<swarm::SwarmMember> members = membersOf(spec);
+  const std::map<std::string, double> leave_times = parseLeaves(o.leave, spec);
+  std::vector<swarm::SwarmMember> members = membersOf(spec, leave_times);
   std::vector<core::Trajectory> truths;
   for (const swarm::SwarmMember& m : members) truths.push_back(m.ground_truth);
 
@@ -261,7 +306,11 @@ Json runSwarmDataset(const std::string& dataset, const std::string& out, std::si
   const eval::RunSummary summary = summaryOf(spec, result, truths, config.radio.meter_interval);
   const std::vector<eval::RobotMetrics> metrics = eval::evaluateRun(summary);
   const Maps maps = buildMaps(summary, result, sc.map.voxel);
-  const Json m = metricsJson(summary, metrics, result, maps);
+  Json m = metricsJson(summary, metrics, result, maps);
+  for (Json& robot : m["robots"]) {
+    const auto it = leave_times.find(robot["name"].get<std::string>());
+    robot["left_at_s"] = it == leave_times.end() ? Json(nullptr) : Json(it->second);
+  }
   writeOutputs(o.out, summary, result, maps, m, metrics);
   return m;
 }
@@ -284,11 +333,15 @@ void addRunCommand(CLI::App& app, const AppConfig& config) {
                   "s of simulated time at most to go on after the data while robots still "
                   "optimise (large teams' last rounds)")
       ->capture_default_str();
+  cmd->add_option("--leave", o->leave,
+                  "NAME@SECONDS: robot NAME leaves the swarm for good at that time of the run "
+                  "(a crash, a dead battery); repeat for several")
+      ->type_name("NAME@SECONDS");
   cmd->add_flag("--json", o->json, "print metrics.json instead of the table");
   cmd->callback([o, &config] {
     if (o->threads < 0) throw core::Error("--threads must be at least 0");
     const Json m =
-        runSwarmDataset(o->dataset, o->out, o->max_frames, o->threads, o->settle, config);
+        runSwarmDataset(o->dataset, o->out, o->max_frames, o->threads, o->settle, config, o->leave);
     if (o->json) return fmt::print("{}\n", m.dump(2));
     printRunTable(m, o->out);
   });

@@ -1184,6 +1184,39 @@ class Run(unittest.TestCase):
             metrics = json.load(f)
         self.assertEqual([r["frame"] for r in metrics["robots"]], ["a", "b", "c"])
 
+    def test_a_robot_that_leaves_keeps_what_it_held_and_the_others_play_on(self):
+        out = os.path.join(self.tmp.name, "leave")
+        _, stdout, _ = run("run", "--dataset", self.dataset, "--out", out, "--max-frames", "150",
+                           "--leave", "b@6")
+        self.assertIn("b left the swarm at 6 s", stdout)
+        with open(os.path.join(out, "metrics.json")) as f:
+            robots = {r["name"]: r for r in json.load(f)["robots"]}
+        # 10 scans a second from the run's start: b plays 6 s of them, the others all 150.
+        self.assertEqual(robots["b"]["frames"], 60)
+        self.assertEqual(robots["b"]["left_at_s"], 6.0)
+        for name in ("a", "c"):
+            self.assertEqual(robots[name]["frames"], 150, name)
+            self.assertIsNone(robots[name]["left_at_s"], name)
+        with open(os.path.join(out, "b", "trajectory.tum")) as f:
+            rows = [line for line in f if line.strip() and not line.startswith("#")]
+        self.assertEqual(len(rows), robots["b"]["keyframes"])
+        self.assertGreater(len(rows), 0)
+        # Without anyone leaving, every robot says so.
+        for r in self.metrics[0]["robots"]:
+            self.assertIsNone(r["left_at_s"], r["name"])
+
+    def test_a_bad_leave_is_refused_before_anything_is_written(self):
+        out = os.path.join(self.tmp.name, "badleave")
+        for value, named in (("z@5", "no robot 'z' in the dataset (its robots: a, b, c)"),
+                             ("b", "NAME@SECONDS"), ("b@-1", "'-1' is not a time"),
+                             ("b@soon", "'soon' is not a time")):
+            code, _, err = run("run", "--dataset", self.dataset, "--out", out, "--max-frames",
+                               "20", "--leave", value, check=False)
+            self.assertEqual(code, 1, value)
+            self.assertIn(named, err, value)
+            self.assertIn(value, err, value)
+            self.assertFalse(os.path.exists(out), value)
+
     def test_a_negative_settle_is_refused_before_anything_is_written(self):
         out = os.path.join(self.tmp.name, "unsettled")
         for value in ("-1", "nan"):
