@@ -250,6 +250,7 @@ struct RobotPlayer {
       sleep(next < frames ? std::min(due(next), end) : std::max(end, now));
     }
     progress.finish();
+    node.stop();  // a round still refining keeps the last step its group kept
     return stopSignal() == 0;
   }
 

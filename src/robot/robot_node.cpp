@@ -93,6 +93,10 @@ constexpr std::size_t kFinalSharesKept = 8;
 
 /// s a robot waits for a lower neighbour's DGS step before stepping without it.
 constexpr double kDgsPatience = 0.1;
+/// A robot stopped while its round refines keeps the last kept step when the
+/// cost fell by at most this share over the last kSettlingSteps kept steps.
+constexpr double kSettlingDecrease = 0.02;
+constexpr std::size_t kSettlingSteps = 10;
 
 /// The distributed refinement after DGS, within a round.
 struct Refinement {
@@ -633,13 +637,8 @@ struct RobotNode::Impl {
       return r == self || present.contains(r);
     });
     const bool late = now - round->progressed > config.round_timeout;
-    if (round->refine && (!whole || late)) {
-      // DGS's estimate and every kept refinement step are consistent in the
-      // group: keep the last kept one rather than nothing.
-      count(whole ? "refine_timeouts" : "refine_cut_short");
-      round->refine->agent.endRound(false);  // a step the group has not judged is not kept
-      return finishRound(round->refine->agent.estimates());
-    }
+    if (round->refine && (!whole || late))
+      return endRefinementEarly(whole ? "refine_timeouts" : "refine_cut_short");
     if (!whole || late) return leave("dgs_rounds_abandoned");
     if (!round->refine) {
       if (!membersInStep()) return;
@@ -676,6 +675,32 @@ struct RobotNode::Impl {
     }
     round->waiting_since = now;
     return true;
+  }
+
+  /// Ends the round's refinement before its schedule did (a member gone
+  /// silent): DGS's estimate and every kept refinement step are consistent
+  /// in the group, so the last kept one is taken rather than nothing.
+  void endRefinementEarly(const char* why) {
+    count(why);
+    round->refine->agent.endRound(false);  // a step the group has not judged is not kept
+    finishRound(round->refine->agent.estimates());
+  }
+
+  /// The robot stops while its round refines: the last kept step is taken
+  /// when the refinement is settling (its cost fell less than
+  /// kSettlingDecrease over the last kSettlingSteps kept steps, which every
+  /// member sees alike), as a round that ran long does. One still repairing
+  /// DGS's estimate (a DGS under heavy loss can leave a chi-square in the
+  /// millions, which the refinement then lowers by most of a per cent a
+  /// step) is left, and the robot keeps what it held.
+  void stopRefinement() {
+    const std::optional<backend::RefineSchedule>& schedule = round->refine->schedule;
+    const std::vector<double>* costs = schedule ? &schedule->roundCosts() : nullptr;
+    const bool settling = costs != nullptr && costs->size() >= kSettlingSteps &&
+                          (*costs)[costs->size() - kSettlingSteps] - costs->back() <=
+                              kSettlingDecrease * costs->back();
+    if (!settling) return leave("rounds_left_unsettled_at_stop");
+    endRefinementEarly("rounds_ended_by_stop");
   }
 
   void finishRound(const PoseMap& estimates, bool capped = false) {
@@ -1084,6 +1109,13 @@ backend::PoseGraph RobotNode::graph() const {
 
 std::optional<core::RobotId> RobotNode::frame() const {
   return impl_->frame;
+}
+
+void RobotNode::stop() {
+  Impl& i = *impl_;
+  if (!i.round) return;
+  if (!i.round->refine) return i.leave("dgs_rounds_left_at_stop");
+  i.stopRefinement();
 }
 
 bool RobotNode::settled() const {

@@ -240,6 +240,11 @@ SwarmResult runSwarm(std::vector<SwarmMember> members, const SwarmConfig& config
     }
   }
 
+  // The run is over: a round still refining keeps the last step its group
+  // kept (a robot that left stopped with what it held then).
+  for (Member& m : robots)
+    if (!m.left(time)) m.node->stop();
+
   SwarmResult result;
   result.duration = time;
   result.radio_events = radio.log().size();

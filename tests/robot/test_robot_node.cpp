@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <map>
 #include <memory>
@@ -38,15 +39,17 @@ struct SwarmRun {
 };
 
 /// Plays the convoy's scans, then `drain` s more of ticks for the rounds to
-/// end, and on while a robot has not settled (60 s at most), as a swarm run
-/// does. From frame `part` on the robots are far out of each other's range;
-/// robot r from frame leave[r] on, and before frame arrive[r], where they
-/// name it.
+/// end, and on while a robot has not settled (60 s at most), then stops the
+/// robots, as a swarm run does. From frame `part` on the robots are far out
+/// of each other's range; robot r from frame leave[r] on, and before frame
+/// arrive[r], where they name it. With `stop_when`, the robots are stopped
+/// as soon as it holds after a tick.
 SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_config = {},
                double drain = 10.0, const RobotConfig& config = {},
                std::size_t part = std::numeric_limits<std::size_t>::max(),
                const std::vector<std::size_t>& leave = {},
-               const std::vector<std::size_t>& arrive = {}) {
+               const std::vector<std::size_t>& arrive = {},
+               const std::function<bool(const SwarmRun&)>& stop_when = {}) {
   if (std::getenv("DCL_TEST_DEBUG")) spdlog::set_level(spdlog::level::debug);
   SwarmRun run;
   run.radio = std::make_unique<comm::SimRadio>(radio_config);
@@ -58,14 +61,21 @@ SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_con
   }
   const std::size_t frames = scans[0]->size();
   double t = 0.0;
+  bool stopped = false;
+  const auto stop = [&run, &stopped] {
+    for (auto& node : run.nodes) node->stop();
+    stopped = true;
+  };
   // Messages move every 20 ms (as in swarm runs), scans come at their stamps.
   const auto tickAll = [&](double time) {
     run.radio->advanceTo(time);
     for (auto& node : run.nodes) node->tick(time);
+    if (stop_when && stop_when(run)) stop();
   };
-  for (std::size_t i = 0; i < frames; ++i) {
+  for (std::size_t i = 0; i < frames && !stopped; ++i) {
     const double stamp = scans[0]->stamp(i);
-    for (; t + 0.02 < stamp; t += 0.02) tickAll(t + 0.02);
+    for (; t + 0.02 < stamp && !stopped; t += 0.02) tickAll(t + 0.02);
+    if (stopped) break;
     t = stamp;
     for (std::size_t r = 0; r < scans.size(); ++r) {  // links follow the true positions
       const core::RobotId id(static_cast<std::uint8_t>(r));
@@ -86,8 +96,9 @@ SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_con
                        [](const auto& node) { return node->settled(); });
   };
   const int most = ticks + static_cast<int>(std::lround(60.0 / 0.02));
-  for (int extra = 1; extra <= ticks || (extra <= most && !settled()); ++extra)
+  for (int extra = 1; !stopped && (extra <= ticks || (extra <= most && !settled())); ++extra)
     tickAll(t + 0.02 * extra);
+  if (!stopped) stop();
   return run;
 }
 
@@ -290,6 +301,49 @@ TEST(RobotNode, RefinementAfterDgsLowersTheCostAndBothRobotsDecideAlike) {
               a.at("refine_steps"), a.at("refine_cost_ratio_last"));
   EXPECT_FALSE(a.contains("refine_timeouts"));
   EXPECT_FALSE(a.contains("refine_cut_short"));
+}
+
+/// Stops the robots `seconds` after both began their first refinement.
+std::function<bool(const SwarmRun&)> refiningFor(double seconds) {
+  auto ticks = std::make_shared<int>(0);
+  return [ticks, seconds](const SwarmRun& run) {
+    const bool refining = std::all_of(run.nodes.begin(), run.nodes.end(), [](const auto& node) {
+      return node->counters().contains("refine_cold_starts");
+    });
+    return refining && ++*ticks * 0.02 >= seconds;
+  };
+}
+
+TEST(RobotNode, StoppedMidRefinementTheRobotsKeepASettlingRoundsLastKeptStep) {
+  // The robots stop while their first round refines (a run's data and its
+  // time to settle are over). 0.7 s in, about 17 steps, the refinement is
+  // settling (its cost falls by about 1 % over ten steps; it converges
+  // after 27): each keeps the last step the group kept, in the round's
+  // frame, not the separate odometry frames it held before.
+  const auto never = std::numeric_limits<std::size_t>::max();
+  const SwarmRun run = drive(convoy(), {}, 10.0, {}, never, {}, {}, refiningFor(0.7));
+  for (const auto& node : run.nodes) {
+    const auto& c = node->counters();
+    EXPECT_EQ(c.at("rounds_ended_by_stop"), 1.0) << core::robotName(node->id());
+    EXPECT_EQ(c.at("dgs_rounds"), 1.0) << core::robotName(node->id());
+    EXPECT_EQ(node->frame(), run.nodes[0]->id()) << core::robotName(node->id());
+  }
+  // b starts 5 m behind a: in its own odometry frame, under one alignment
+  // with a, it would be metres off.
+  const std::vector<eval::RobotMetrics> m = eval::evaluateRun(summaryOf(run));
+  for (const eval::RobotMetrics& robot : m) {
+    ASSERT_TRUE(robot.ate_rmse_joint);
+    EXPECT_LT(*robot.ate_rmse_joint, 0.3);
+  }
+  // Stopped 0.1 s in, two steps from DGS's estimate, the round is left: each
+  // robot keeps what it held, in its own frame.
+  const SwarmRun early = drive(convoy(), {}, 10.0, {}, never, {}, {}, refiningFor(0.1));
+  for (const auto& node : early.nodes) {
+    const auto& c = node->counters();
+    EXPECT_EQ(c.at("rounds_left_unsettled_at_stop"), 1.0) << core::robotName(node->id());
+    EXPECT_FALSE(c.contains("dgs_rounds")) << core::robotName(node->id());
+    EXPECT_EQ(node->frame(), node->id());
+  }
 }
 
 /// The cost of the joint graph (every robot's keyframes at its estimates,

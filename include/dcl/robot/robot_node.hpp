@@ -26,15 +26,15 @@
 /// exchange through comm's messages) whenever the group's loops changed since
 /// its last round; the others join when its first message reaches them. The
 /// anchor's first pose stays where it is, so every member ends in the
-/// anchor's frame. DGS's answer solves a linearised problem; the round goes on
-/// with the distributed refinement (backend::RefineAgent) from it: in each
-/// step a robot solves its block once its lower-id neighbours have sent their
-/// separators of that step, sends its own, and shares its part of the graph's
-/// cost; every member takes the same keep, restart and stop decisions
-/// (backend::RefineSchedule) from the same shares. A refinement message lost
-/// is sent again while the robot waits. A round abandoned (a member out of range, a timeout)
-/// changes nothing; a robot alone keeps its own frame. Keyframes added after
-/// a round follow the last optimised one by odometry.
+/// anchor's frame. DGS's answer solves a linearised
+/// problem; the round goes on with the distributed refinement (backend::RefineAgent) from it: in
+/// each step a robot solves its block once its lower-id neighbours have sent their separators of
+/// that step, sends its own, and shares its part of the graph's cost; every member takes the same
+/// keep, restart and stop decisions (backend::RefineSchedule) from the same shares. A refinement
+/// message lost is sent again while the robot waits. A round abandoned in DGS (a member out of
+/// range, a timeout) changes nothing; one cut short in its refinement, or still refining when the
+/// robot stops, keeps the last step the group kept. A robot alone keeps its own frame. Keyframes
+/// added after a round follow the last optimised one by odometry.
 ///
 /// Every decision is counted (RobotNode::counters), so a user can see why no
 /// loop was found: descriptors sent and received, candidates, verifications
@@ -188,6 +188,16 @@ class RobotNode {
   /// it is (frames.hpp): the own until a round places the robot. None after
   /// a round whose frame its initiator did not say.
   [[nodiscard]] std::optional<core::RobotId> frame() const;
+
+  /// The robot stops (its data played and the time to settle spent, or told
+  /// to): a round whose refinement is settling (its cost fell by at most 2 %
+  /// over its last 10 kept steps) ends with the last step the group kept, so
+  /// the estimates are that round's rather than the last finished one's
+  /// (`rounds_ended_by_stop`). A round still in DGS, or whose refinement is
+  /// still repairing DGS's estimate, is left, and the robot keeps what it
+  /// held (`dgs_rounds_left_at_stop`, `rounds_left_unsettled_at_stop`).
+  /// Call it once, last; the node takes no scan or tick after it.
+  void stop();
 
   /// Nothing left to optimise with the robots in range: no round under way,
   /// none due for changed loops, and the last one converged. A recording
