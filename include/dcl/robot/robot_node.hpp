@@ -26,15 +26,17 @@
 /// exchange through comm's messages) whenever the group's loops changed since
 /// its last round; the others join when its first message reaches them. The
 /// anchor's first pose stays where it is, so every member ends in the
-/// anchor's frame. DGS's answer solves a linearised
-/// problem; the round goes on with the distributed refinement (backend::RefineAgent) from it: in
-/// each step a robot solves its block once its lower-id neighbours have sent their separators of
-/// that step, sends its own, and shares its part of the graph's cost; every member takes the same
-/// keep, restart and stop decisions (backend::RefineSchedule) from the same shares. A refinement
-/// message lost is sent again while the robot waits. A round abandoned in DGS (a member out of
-/// range, a timeout) changes nothing; one cut short in its refinement, or still refining when the
-/// robot stops, keeps the last step the group kept. A robot alone keeps its own frame. Keyframes
-/// added after a round follow the last optimised one by odometry.
+/// anchor's frame. DGS's answer solves a linearised problem; the round goes
+/// on with the distributed refinement (backend::RefineAgent) from it: in each
+/// step a robot solves its block once its lower-id neighbours have sent their
+/// separators of that step, sends its own, and shares its part of the graph's
+/// cost; every member takes the same keep, restart and stop decisions
+/// (backend::RefineSchedule) from the same shares. A refinement message lost
+/// is sent again while the robot waits. A round abandoned in DGS (a member
+/// out of range, a timeout) changes nothing; one cut short in its refinement,
+/// or still settling when the robot stops, keeps the last step the group
+/// kept. A robot alone keeps its own frame. Keyframes added after a round
+/// follow the last optimised one by odometry.
 ///
 /// Every decision is counted (RobotNode::counters), so a user can see why no
 /// loop was found: descriptors sent and received, candidates, verifications
