@@ -687,7 +687,7 @@ struct RobotNode::Impl {
   }
 
   /// The robot stops while its round refines: the last kept step is taken
-  /// when the refinement is settling (its cost fell less than
+  /// when the refinement is settling (its cost fell by at most
   /// kSettlingDecrease over the last kSettlingSteps kept steps, which every
   /// member sees alike), as a round that ran long does. One still repairing
   /// DGS's estimate (a DGS under heavy loss can leave a chi-square in the
