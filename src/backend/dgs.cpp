@@ -5,6 +5,7 @@
 #include <limits>
 #include <optional>
 #include <string>
+#include <utility>
 
 #include <dcl/backend/dgs.hpp>
 #include <dcl/core/error.hpp>
@@ -118,6 +119,9 @@ struct DgsAgent::Impl {
   dgs::RotationProblem rotation_problem;
   dgs::PoseProblem pose_problem;
   std::vector<DgsMessage> outbox;
+  /// Per stage, the last message sent to each neighbour, and the replies due.
+  std::array<std::map<core::RobotId, DgsMessage>, 2> last_sent;
+  std::vector<DgsMessage> replies;
 
   Impl(core::RobotId r, const PoseGraph& local, const DgsConfig& c) : robot(r), config(c) {
     validate(config);
@@ -157,6 +161,8 @@ struct DgsAgent::Impl {
     for (const Eigen::Isometry3d& T : initial) rotations.push_back(T.linear());
     layout.reset();
     outbox.clear();
+    last_sent = {};
+    replies.clear();
     beginStage();
   }
 
@@ -183,12 +189,12 @@ struct DgsAgent::Impl {
   // ---- receiving -------------------------------------------------------
 
   void receive(const DgsMessage& m) {
-    if (stage == DgsStage::idle || stage == DgsStage::done) return;
+    if (stage == DgsStage::idle) return;
     if (m.to != robot || m.round != round || !group.contains(m.from) || m.from == robot) return;
     if (!separators.contains(m.from)) return;
     if (m.stage != DgsStage::rotation && m.stage != DgsStage::pose) return;
     const int s = stageIndex(m.stage);
-    if (s < stageIndex(stage)) return;
+    if (stage == DgsStage::done || s < stageIndex(stage)) return answerStraggler(m, s);
     if (!wellFormed(m)) {
       ++rejected;
       return;
@@ -214,6 +220,16 @@ struct DgsAgent::Impl {
       auto [it, added] = progress[s].try_emplace(member_robot, p);
       if (!added && p.iteration > it->second.iteration) it->second = p;
     }
+  }
+
+  /// The sender of `m` is still in stage `s`, which this robot has left: it
+  /// lost the message saying so, and would step on alone to the cap. Not
+  /// when `m` is the sender's own last message of the stage.
+  void answerStraggler(const DgsMessage& m, int s) {
+    const auto own = m.progress.find(m.from);
+    if (own != m.progress.end() && own->second.finished) return;
+    const auto last = last_sent[s].find(m.from);
+    if (last != last_sent[s].end()) replies.push_back(last->second);
   }
 
   [[nodiscard]] bool wellFormed(const DgsMessage& m) const {
@@ -387,6 +403,7 @@ struct DgsAgent::Impl {
         }
         if (s == 1) linearisation_sent.insert(q);
       }
+      last_sent[s][q] = m;
       out.push_back(std::move(m));
     }
     return out;
@@ -431,6 +448,10 @@ void DgsAgent::iterate() {
 
 std::vector<DgsMessage> DgsAgent::outgoing() const {
   return impl_->outbox;
+}
+
+std::vector<DgsMessage> DgsAgent::replies() {
+  return std::exchange(impl_->replies, {});
 }
 
 void DgsAgent::abortRound() {

@@ -109,6 +109,7 @@ comm::Body toWire(const RefineMessage& m) {
   state.iteration = m.step;
   if (m.cost_share) {
     state.change = *m.cost_share;
+    state.converged = m.finished;
     return state;
   }
   comm::PoseEstimates p{state, {}, !m.increments, m.increments};
@@ -125,6 +126,7 @@ std::optional<RefineMessage> refineFromWire(const comm::Message& message) {
     out.round = s->round;
     out.step = s->iteration;
     out.cost_share = s->change;
+    out.finished = s->converged;
     return out;
   }
   if (const auto* p = std::get_if<comm::PoseEstimates>(&message.body)) {

@@ -87,12 +87,17 @@ using PoseMap = std::map<core::PoseKey, Eigen::Isometry3d>;
 
 /// s a robot waiting in the refinement lets pass before sending its messages
 /// of the step again (one may have been lost).
-constexpr double kRefineResend = 0.1;
+constexpr double kRefineResend = 0.04;
 /// Finished rounds whose final refinement share is kept for members that lost it.
 constexpr std::size_t kFinalSharesKept = 8;
 
-/// s a robot waits for a lower neighbour's DGS step before stepping without it.
-constexpr double kDgsPatience = 0.1;
+/// s a robot waiting for a member's DGS step lets pass before sending its own
+/// last step's messages again (one may have been lost, and the member may be
+/// waiting for it in turn).
+constexpr double kDgsResend = 0.04;
+/// s a robot waits for a member's DGS step before stepping without it: a few
+/// re-sends, so a step is skipped only when its messages are lost again and again.
+constexpr double kDgsPatience = 0.2;
 /// A robot stopped while its round refines keeps the last kept step when the
 /// cost fell by at most this share over the last kSettlingSteps kept steps.
 constexpr double kSettlingDecrease = 0.02;
@@ -155,7 +160,7 @@ struct Round {
   /// Per member heard from in this round: its latest DGS step, and whether it
   /// has left DGS (its last stage finished).
   std::map<core::RobotId, std::pair<int, bool>> heard;
-  double waiting_since = 0.0;  ///< when this robot began to wait for a lower neighbour
+  double waiting_since = 0.0;  ///< when this robot began to wait for a member's step
   std::optional<Refinement> refine;
   /// Refinement messages received, by step (a member may be a step ahead, or
   /// already refining while DGS still runs here).
@@ -165,6 +170,9 @@ struct Round {
   /// Per member: the step of the last refinement values taken in from it, and
   /// those values (the base its next step's increments apply to).
   std::map<core::RobotId, std::pair<std::uint32_t, PoseMap>> decoded;
+  /// Its last DGS step's messages and their receivers, for re-sending.
+  std::vector<std::pair<core::RobotId, comm::Body>> dgs_sent;
+  double dgs_last_sent = 0.0;
 };
 
 std::uint8_t initiator(std::uint32_t round) {
@@ -199,6 +207,9 @@ struct RobotNode::Impl {
   std::map<core::RobotId, Link> links;
   std::optional<Round> round;
   std::set<std::uint32_t> finished;  ///< rounds this robot took part in and left
+  /// Of those, the rounds it left before they were done (abandoned, or ended
+  /// early): a member still in one is told so when it is heard from.
+  std::set<std::uint32_t> abandoned;
   std::uint32_t rounds_started = 0;
   double last_round_start = kNever;  ///< when this robot last joined a round
   double last_announce = kNever;
@@ -309,6 +320,8 @@ struct RobotNode::Impl {
     if (const auto* a = std::get_if<comm::DgsState>(&m.body);
         a != nullptr && a->stage == comm::OptimisationStage::idle)
       return onAnnouncement(from, *a);
+    if (const auto* a = std::get_if<comm::DgsState>(&m.body); a != nullptr && a->abort)
+      return onAbort(from, a->round);
     if (std::optional<RefineMessage> r = refineFromWire(m)) return onRefine(*r);
     if (std::optional<backend::DgsMessage> dgs = fromWire(m)) onDgs(*dgs, roundOrigin(m));
   }
@@ -596,11 +609,25 @@ struct RobotNode::Impl {
     spdlog::debug("robot {}: t {:.1f}: joins round {} of {} robots", core::robotName(self), now,
                   number, members.size());
     count("dgs_rounds_joined");
+    // A member that holds no loop to the others yet (the measurement of the
+    // loop that made the initiator count it in is still on its way) could
+    // neither anchor nor solve its block: the round would step to its cap.
+    const std::set<core::RobotId> linked = round->agent.neighbours();
+    if (std::none_of(members.begin(), members.end(),
+                     [&](core::RobotId r) { return r != self && linked.contains(r); }))
+      leave("dgs_rounds_left_without_loops", true);
   }
 
-  /// Abandons the round; the group tries again when it is whole (its loops unchanged or not).
-  void leave(const char* why) {
+  /// Abandons the round; the group tries again when it is whole (its loops
+  /// unchanged or not). A round a member left before it could begin (its
+  /// loops not there yet) is tried again an announce_period on, not an
+  /// optimise_period.
+  void leave(const char* why, bool soon = false) {
+    if (soon)
+      last_round_start =
+          std::min(last_round_start, now - config.optimise_period + config.announce_period);
     round->agent.abortRound();
+    tellAbandoned(std::nullopt, round->number);
     finished.insert(round->number);
     round.reset();
     last_signature.clear();
@@ -610,7 +637,7 @@ struct RobotNode::Impl {
   }
 
   void onDgs(const backend::DgsMessage& m, const RoundOrigin& origin) {
-    if (finished.contains(m.round)) return;
+    if (finished.contains(m.round)) return tellAbandoned(m.from, m.round);
     if (!round || m.round != round->number) {
       // A round led by a lower robot wins over this robot's own.
       if (round && initiator(m.round) >= initiator(round->number)) return count("dgs_ignored");
@@ -621,12 +648,17 @@ struct RobotNode::Impl {
       for (const auto& [robot, p] : m.progress) members.insert(robot);
       if (!members.contains(self)) return count("dgs_ignored");
       join(m.round, members, origin);
+      if (!round) return;
     }
     auto& [step, left] = round->heard[m.from];
     step = std::max(step, m.iteration);
     if (const auto it = m.progress.find(m.from); it != m.progress.end())
       left = left || (m.stage == backend::DgsStage::pose && it->second.finished);
     round->agent.receive(m);
+    for (const backend::DgsMessage& reply : round->agent.replies()) {
+      messenger.send(reply.to, withMembers(toWire(reply), round->group, round->origin), now);
+      count("dgs_stragglers_answered");
+    }
   }
 
   /// One DGS step a tick, then the refinement; the estimates taken when the round is done.
@@ -644,11 +676,22 @@ struct RobotNode::Impl {
       if (!membersInStep()) return;
       round->agent.iterate();
       round->progressed = now;
-      for (const backend::DgsMessage& m : round->agent.outgoing())
-        messenger.send(m.to, withMembers(toWire(m), round->group, round->origin), now);
+      round->dgs_sent.clear();
+      for (const backend::DgsMessage& m : round->agent.outgoing()) {
+        round->dgs_sent.emplace_back(m.to, withMembers(toWire(m), round->group, round->origin));
+        messenger.send(m.to, round->dgs_sent.back().second, now);
+      }
+      round->dgs_last_sent = now;
       if (round->agent.stage() != backend::DgsStage::done) return;
-      count("dgs_iterations_rotation", round->agent.stageIterations(backend::DgsStage::rotation));
-      count("dgs_iterations_pose", round->agent.stageIterations(backend::DgsStage::pose));
+      const int rotation = round->agent.stageIterations(backend::DgsStage::rotation);
+      const int pose = round->agent.stageIterations(backend::DgsStage::pose);
+      spdlog::debug("robot {}: t {:.2f}: round {} DGS done: {} + {} steps", core::robotName(self),
+                    now, round->number, rotation, pose);
+      count("dgs_iterations_rotation", rotation);
+      count("dgs_iterations_pose", pose);
+      // A stage that ran to its cap did not converge: its estimate may be far off.
+      if (rotation >= config.dgs.max_rotation_iterations) count("dgs_rotation_stages_capped");
+      if (pose >= config.dgs.max_pose_iterations) count("dgs_pose_stages_capped");
       if (config.refine.max_rounds == 0) return finishRound(round->agent.estimates());
       startRefinement();
     }
@@ -662,19 +705,35 @@ struct RobotNode::Impl {
   /// pace never see a step at which the whole group was converged (the
   /// members' step counts drift apart), and stepping all at once on each
   /// other's previous values is Jacobi, which oscillates when three or more
-  /// robots are tightly looped. A member silent for kDgsPatience (a lost
-  /// message) is not waited for longer.
+  /// robots are tightly looped. A robot waiting sends its last step again
+  /// every kDgsResend: a message lost either way leaves both robots waiting,
+  /// each for the other. A member silent for kDgsPatience is not waited for
+  /// longer.
   [[nodiscard]] bool membersInStep() {
     const int next = round->agent.iteration() + 1;
     for (const auto& [robot, heard] : round->heard) {
       const int needed = robot < self ? next : next - 1;
       if (heard.second || heard.first >= needed) continue;
-      if (now - round->waiting_since < kDgsPatience) return false;
+      if (now - round->waiting_since < kDgsPatience) {
+        resendDgsStep();
+        return false;
+      }
       count("dgs_waits_cut_short");
+      spdlog::debug(
+          "robot {}: t {:.2f}: round {} step {} stage {} stops waiting for {} (heard step {})",
+          core::robotName(self), now, round->number, next, static_cast<int>(round->agent.stage()),
+          core::robotName(robot), heard.first);
       break;
     }
     round->waiting_since = now;
     return true;
+  }
+
+  void resendDgsStep() {
+    if (round->dgs_sent.empty() || now - round->dgs_last_sent < kDgsResend) return;
+    for (const auto& [to, body] : round->dgs_sent) messenger.send(to, body, now);
+    round->dgs_last_sent = now;
+    count("dgs_resent", static_cast<double>(round->dgs_sent.size()));
   }
 
   /// Ends the round's refinement before its schedule did (a member gone
@@ -682,6 +741,7 @@ struct RobotNode::Impl {
   /// in the group, so the last kept one is taken rather than nothing.
   void endRefinementEarly(const char* why) {
     count(why);
+    tellAbandoned(std::nullopt, round->number);
     round->refine->agent.endRound(false);  // a step the group has not judged is not kept
     finishRound(round->refine->agent.estimates());
   }
@@ -830,7 +890,10 @@ struct RobotNode::Impl {
   }
 
   void onRefine(const RefineMessage& m) {
-    if (finished.contains(m.round)) return answerLateMember(m);
+    if (finished.contains(m.round)) {
+      if (abandoned.contains(m.round)) return tellAbandoned(m.from, m.round);
+      return answerLateMember(m);
+    }
     if (!round || m.round != round->number || !round->group.contains(m.from)) {
       if (!m.to) return;  // a share broadcast in a round this robot is not in
       spdlog::debug(
@@ -863,13 +926,44 @@ struct RobotNode::Impl {
     round->values[m.step][m.from] = values;
   }
 
+  /// Tells `to` (everyone in range: none) that this robot left round `number`
+  /// before it was done: the round cannot be finished without it (its
+  /// refinement adds up every member's share), and a member still in it
+  /// would wait for its steps until the round timed out. Nothing for a
+  /// round this robot finished.
+  void tellAbandoned(std::optional<core::RobotId> to, std::uint32_t number) {
+    if (to && !abandoned.contains(number)) return;
+    abandoned.insert(number);
+    comm::DgsState notice;
+    notice.round = number;
+    notice.stage = comm::OptimisationStage::done;
+    notice.abort = true;
+    messenger.send(to, notice, now);
+    if (to) count("abandoned_rounds_told");
+  }
+
+  /// A member left the round: this robot leaves it too (in DGS) or keeps its
+  /// refinement's last kept step, as when the member goes silent. A round not
+  /// joined yet is not joined.
+  void onAbort(core::RobotId from, std::uint32_t number) {
+    if (!round || round->number != number) {
+      if (!finished.contains(number)) finished.insert(number);
+      return;
+    }
+    if (!round->group.contains(from)) return;
+    if (round->refine) return endRefinementEarly("refine_ended_by_member");
+    leave("dgs_rounds_left_by_member", true);
+  }
+
   /// A member still at the step at which this robot's refinement of a finished
   /// round ended lost this robot's share of it: it gets the share again.
   void answerLateMember(const RefineMessage& m) {
+    if (m.finished) return;  // an answer: two robots done with the round would answer forever
     const auto it = final_shares.find(m.round);
     if (it == final_shares.end() || m.step != it->second.step) return;
     RefineMessage reply = it->second;
     reply.to = m.from;
+    reply.finished = true;
     messenger.send(reply.to, toWire(reply), now);
     count("refine_final_shares_resent");
   }

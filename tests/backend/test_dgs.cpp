@@ -369,17 +369,22 @@ TEST(DgsAgent, DoesNotUseAnUninitialisedNeighbour) {
   for (const auto& [k, R] : clean) EXPECT_TRUE(after_garbage.at(k) == R);
 }
 
+/// The agents of a spiral split in two, in round 3 together.
+std::pair<DgsAgent, DgsAgent> twoRobotRound() {
+  const auto locals = partitionByRobot(splitIntoRobots(exactGraph(spiral(60)), 2));
+  const std::set<core::RobotId> group{robotId(0), robotId(1)};
+  std::pair<DgsAgent, DgsAgent> agents{DgsAgent(robotId(0), locals.at(robotId(0))),
+                                       DgsAgent(robotId(1), locals.at(robotId(1)))};
+  agents.first.startRound(group, 3);
+  agents.second.startRound(group, 3);
+  return agents;
+}
+
 TEST(DgsAgent, AMemberInTheNextStageHasLeftThisOne) {
   // a and b step in turn; every message b sends while it leaves the rotation
   // stage is lost. b's first pose-stage message tells a that b has left: a
   // follows at its next step instead of stepping rotations alone to the cap.
-  const PoseGraph graph = splitIntoRobots(exactGraph(spiral(60)), 2);
-  const auto locals = partitionByRobot(graph);
-  const std::set<core::RobotId> group{robotId(0), robotId(1)};
-  DgsAgent a(robotId(0), locals.at(robotId(0)));
-  DgsAgent b(robotId(1), locals.at(robotId(1)));
-  a.startRound(group, 3);
-  b.startRound(group, 3);
+  auto [a, b] = twoRobotRound();
   bool lost = false;
   for (int turn = 0; turn < 200 && b.stage() == DgsStage::rotation; ++turn) {
     a.iterate();
@@ -412,6 +417,41 @@ TEST(DgsAgent, AMemberInTheNextStageHasLeftThisOne) {
   EXPECT_EQ(a.stage(), DgsStage::done);
   EXPECT_EQ(b.stage(), DgsStage::done);
   EXPECT_LT(a.stageIterations(DgsStage::rotation), 100);
+}
+
+TEST(DgsAgent, ADoneMemberAnswersOneStillInItsLastStage) {
+  // b finishes the round and every message it sends as it does is lost: a,
+  // still in the pose stage, would step alone to the cap. Its next message
+  // makes b send its last pose-stage message again, which says b has left.
+  auto [a, b] = twoRobotRound();
+  std::vector<DgsMessage> lost;
+  for (int turn = 0; turn < 400 && b.stage() != DgsStage::done; ++turn) {
+    a.iterate();
+    for (const DgsMessage& m : a.outgoing()) b.receive(m);
+    EXPECT_TRUE(b.replies().empty());  // a is not behind b
+    b.iterate();
+    if (b.stage() != DgsStage::done) {
+      for (const DgsMessage& m : b.outgoing()) a.receive(m);
+    } else {
+      lost = b.outgoing();
+    }
+  }
+  ASSERT_EQ(b.stage(), DgsStage::done);
+  ASSERT_EQ(lost.size(), 1U);
+  ASSERT_EQ(a.stage(), DgsStage::pose);
+  a.iterate();
+  ASSERT_EQ(a.stage(), DgsStage::pose);  // it has not seen b leave
+  for (const DgsMessage& m : a.outgoing()) b.receive(m);
+  const std::vector<DgsMessage> replies = b.replies();
+  ASSERT_EQ(replies.size(), 1U);
+  EXPECT_EQ(replies[0].to, robotId(0));
+  EXPECT_EQ(replies[0].iteration, lost[0].iteration);
+  EXPECT_TRUE(replies[0].progress.at(robotId(1)).finished);
+  EXPECT_TRUE(b.replies().empty());  // handed over once
+  a.receive(replies[0]);
+  a.iterate();
+  EXPECT_EQ(a.stage(), DgsStage::done);
+  EXPECT_LT(a.stageIterations(DgsStage::pose), 100);
 }
 
 TEST(DgsAgent, RejectsMalformedMessagesAndIgnoresOtherRounds) {

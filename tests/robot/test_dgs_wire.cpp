@@ -136,6 +136,14 @@ TEST(RefineOverTheWire, SharesAreBroadcastAndSeparatorsAddressed) {
   EXPECT_EQ(share->step, 17U);
   ASSERT_TRUE(share->cost_share);
   EXPECT_EQ(*share->cost_share, 0.25F);
+  EXPECT_FALSE(share->finished);
+  // A share sent again to a late member by a robot done with the round says so.
+  RefineMessage answer{a, b, 258, 17, {}, 0.25F};
+  answer.finished = true;
+  const std::optional<RefineMessage> answered = refineOverTheWire(answer, b);
+  ASSERT_TRUE(answered);
+  EXPECT_TRUE(answered->finished);
+  EXPECT_EQ(answered->to, b);
   // Separators are for the member whose loops they end.
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.translation() = Eigen::Vector3d(1.0, -2.0, 0.5);

@@ -36,6 +36,7 @@ struct SwarmRun {
   std::vector<std::unique_ptr<RobotNode>> nodes;
   std::vector<core::Trajectory> ground_truth;
   std::unique_ptr<comm::SimRadio> radio;
+  std::vector<bool> halted;  ///< per robot: stopped by `each_tick`, no longer played or ticked
 };
 
 /// Plays the convoy's scans, then `drain` s more of ticks for the rounds to
@@ -43,13 +44,15 @@ struct SwarmRun {
 /// robots, as a swarm run does. From frame `part` on the robots are far out
 /// of each other's range; robot r from frame leave[r] on, and before frame
 /// arrive[r], where they name it. With `stop_when`, the robots are stopped
-/// as soon as it holds after a tick.
+/// as soon as it holds after a tick. `each_tick` runs after every tick; it
+/// may stop a robot (RobotNode::stop) and mark it halted.
 SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_config = {},
                double drain = 10.0, const RobotConfig& config = {},
                std::size_t part = std::numeric_limits<std::size_t>::max(),
                const std::vector<std::size_t>& leave = {},
                const std::vector<std::size_t>& arrive = {},
-               const std::function<bool(const SwarmRun&)>& stop_when = {}) {
+               const std::function<bool(const SwarmRun&)>& stop_when = {},
+               const std::function<void(SwarmRun&)>& each_tick = {}) {
   if (std::getenv("DCL_TEST_DEBUG")) spdlog::set_level(spdlog::level::debug);
   SwarmRun run;
   run.radio = std::make_unique<comm::SimRadio>(radio_config);
@@ -59,17 +62,21 @@ SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_con
     run.nodes.push_back(std::make_unique<RobotNode>(run.radio->endpoint(id), config));
     run.ground_truth.push_back(io::readGroundTruth(convoy.spec, r));
   }
+  run.halted.assign(scans.size(), false);
   const std::size_t frames = scans[0]->size();
   double t = 0.0;
   bool stopped = false;
   const auto stop = [&run, &stopped] {
-    for (auto& node : run.nodes) node->stop();
+    for (std::size_t r = 0; r < run.nodes.size(); ++r)
+      if (!run.halted[r]) run.nodes[r]->stop();
     stopped = true;
   };
   // Messages move every 20 ms (as in swarm runs), scans come at their stamps.
   const auto tickAll = [&](double time) {
     run.radio->advanceTo(time);
-    for (auto& node : run.nodes) node->tick(time);
+    for (std::size_t r = 0; r < run.nodes.size(); ++r)
+      if (!run.halted[r]) run.nodes[r]->tick(time);
+    if (each_tick) each_tick(run);
     if (stop_when && stop_when(run)) stop();
   };
   for (std::size_t i = 0; i < frames && !stopped; ++i) {
@@ -86,6 +93,7 @@ SwarmRun drive(const test::Convoy& convoy, const comm::SimRadioConfig& radio_con
     }
     run.radio->advanceTo(t);
     for (std::size_t r = 0; r < scans.size(); ++r) {
+      if (run.halted[r]) continue;
       run.nodes[r]->addScan(scans[r]->stamp(i), scans[r]->scan(i));
       run.nodes[r]->tick(t);
     }
@@ -346,6 +354,34 @@ TEST(RobotNode, StoppedMidRefinementTheRobotsKeepASettlingRoundsLastKeptStep) {
   }
 }
 
+TEST(RobotNode, AMemberThatStopsMidRoundTellsTheOthers) {
+  // b stops 0.7 s into the first round's refinement (its process ends) while
+  // a goes on. b's notice that it left the round ends a's refinement at the
+  // last step the group kept, as b's own, at once: a does not wait out the
+  // round's timeout for steps b will never send. Both end in one frame.
+  const auto never = std::numeric_limits<std::size_t>::max();
+  const auto refining = refiningFor(0.7);
+  const auto stop_b = [&](SwarmRun& run) {
+    if (run.halted[1] || !refining(run)) return;
+    run.nodes[1]->stop();
+    run.halted[1] = true;
+  };
+  const SwarmRun run = drive(convoy(), {}, 10.0, {}, never, {}, {}, {}, stop_b);
+  ASSERT_TRUE(run.halted[1]);
+  const auto& a = run.nodes[0]->counters();
+  const auto& b = run.nodes[1]->counters();
+  EXPECT_EQ(b.at("rounds_ended_by_stop"), 1.0);
+  EXPECT_EQ(a.at("refine_ended_by_member"), 1.0);
+  EXPECT_FALSE(a.contains("refine_timeouts"));
+  EXPECT_EQ(run.nodes[0]->frame(), run.nodes[0]->id());
+  EXPECT_EQ(run.nodes[1]->frame(), run.nodes[0]->id());
+  const std::vector<eval::RobotMetrics> m = eval::evaluateRun(summaryOf(run));
+  for (const eval::RobotMetrics& robot : m) {
+    ASSERT_TRUE(robot.ate_rmse_joint);
+    EXPECT_LT(*robot.ate_rmse_joint, 0.3);
+  }
+}
+
 /// The cost of the joint graph (every robot's keyframes at its estimates,
 /// odometry, intra- and inter-robot loops) over its optimum, as a central
 /// solver finds it.
@@ -431,13 +467,15 @@ class RobotNodeLossy : public ::testing::TestWithParam<unsigned> {};
 
 TEST_P(RobotNodeLossy, WithAThirdOfMessagesLostBothStillEndInOneFrame) {
   // Descriptors and loops are re-sent until acknowledged; DGS and refinement
-  // messages are not: a robot waits a little for a lost one, then steps on
-  // (DGS) or sends its step again (refinement). Each loss costs a wait, so a
-  // round takes several seconds: the run drains for 30 s, not 10. With the
-  // radio's losses of these seeds, two lost messages used to leave a robot out
-  // of every round: the last refinement share (the other robot had finished
-  // and no longer answered), and the last rotation-stage message (the robot
-  // stepped rotations alone to the cap while the other was in the pose stage).
+  // messages are not: a robot waiting for a step sends its own again (a lost
+  // message leaves both waiting), and after a few tries steps on (DGS). Each
+  // loss costs a wait, so a round takes several seconds: the run drains for
+  // 30 s, not 10. With the radio's losses of these seeds, lost messages used
+  // to leave a robot out of every round: the last refinement share (the other
+  // robot had finished and no longer answered), and the last message of a DGS
+  // stage (the robot stepped alone to the cap while the other had moved on).
+  // A robot still in a stage the other has left is answered with its last
+  // message of that stage, which says so.
   comm::SimRadioConfig lossy;
   lossy.drop_rate = 0.3;
   lossy.seed = GetParam();
@@ -447,6 +485,8 @@ TEST_P(RobotNodeLossy, WithAThirdOfMessagesLostBothStillEndInOneFrame) {
     EXPECT_GE(c.contains("dgs_rounds") ? c.at("dgs_rounds") : 0.0, 1.0)
         << core::robotName(node->id());
     EXPECT_FALSE(accepted(*node).empty());
+    EXPECT_FALSE(c.contains("dgs_rotation_stages_capped")) << core::robotName(node->id());
+    EXPECT_FALSE(c.contains("dgs_pose_stages_capped")) << core::robotName(node->id());
   }
   EXPECT_EQ(accepted(*run.nodes[0]), accepted(*run.nodes[1]));
   const std::vector<eval::RobotMetrics> m = eval::evaluateRun(summaryOf(run));

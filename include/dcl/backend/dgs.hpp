@@ -165,8 +165,13 @@ class DgsAgent {
   /// round or an earlier stage, from outside the group, or older than the
   /// sender's last; dropped and counted (rejectedMessages) when malformed:
   /// non-finite or implausible values, a stage-2 rotation that is not one, or
-  /// an inconsistent progress entry. Never throws.
+  /// an inconsistent progress entry. A message from a neighbour still in a
+  /// stage this robot has left (its last message of that stage, which says
+  /// so, was lost) queues that last message again for it (replies()). Never
+  /// throws.
   void receive(const DgsMessage& message) noexcept;
+  /// The replies queued by receive() since the last call, handed over once.
+  [[nodiscard]] std::vector<DgsMessage> replies();
   /// One Gauss-Seidel step of the current stage on this robot's block, with
   /// the neighbours' latest separator estimates fixed. Moves to the next
   /// stage when the group has converged (see DgsConfig) or hit the cap. A

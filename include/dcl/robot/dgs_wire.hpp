@@ -47,6 +47,9 @@ struct RefineMessage {
   /// `poses` are increments T_last^-1 T from the poses of the sender's
   /// previous step (comm::PoseEstimates::increments).
   bool increments = false;
+  /// A share sent again by a robot whose refinement of the round has ended,
+  /// to a member still waiting for it: an answer, never itself answered.
+  bool finished = false;
 };
 
 comm::Body toWire(const RefineMessage& message);
