@@ -947,7 +947,7 @@ struct RobotNode::Impl {
   /// joined yet is not joined.
   void onAbort(core::RobotId from, std::uint32_t number) {
     if (!round || round->number != number) {
-      if (!finished.contains(number)) finished.insert(number);
+      finished.insert(number);
       return;
     }
     if (!round->group.contains(from)) return;
