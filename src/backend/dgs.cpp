@@ -119,7 +119,8 @@ struct DgsAgent::Impl {
   dgs::RotationProblem rotation_problem;
   dgs::PoseProblem pose_problem;
   std::vector<DgsMessage> outbox;
-  /// Per stage, the last message sent to each neighbour, and the replies due.
+  /// Per stage, the last message sent to each neighbour (the one that says this
+  /// robot left the stage), and the replies due.
   std::array<std::map<core::RobotId, DgsMessage>, 2> last_sent;
   std::vector<DgsMessage> replies;
 
@@ -333,7 +334,9 @@ struct DgsAgent::Impl {
     const bool leave = groupConverged(s) || someoneLeft(s) || stage_steps[s] >= cap;
     own.finished = leave;
     outbox = messages(s);
-    if (leave) finishStage(s);
+    if (!leave) return;
+    for (const DgsMessage& m : outbox) last_sent[s][m.to] = m;
+    finishStage(s);
   }
 
   /// True when the progress heard of shows a step at which every member was converged.
@@ -403,7 +406,6 @@ struct DgsAgent::Impl {
         }
         if (s == 1) linearisation_sent.insert(q);
       }
-      last_sent[s][q] = m;
       out.push_back(std::move(m));
     }
     return out;

@@ -170,9 +170,7 @@ struct Round {
   /// Per member: the step of the last refinement values taken in from it, and
   /// those values (the base its next step's increments apply to).
   std::map<core::RobotId, std::pair<std::uint32_t, PoseMap>> decoded;
-  /// Its last DGS step's messages and their receivers, for re-sending.
-  std::vector<std::pair<core::RobotId, comm::Body>> dgs_sent;
-  double dgs_last_sent = 0.0;
+  double dgs_last_sent = 0.0;  ///< when its last DGS step's messages went out
 };
 
 std::uint8_t initiator(std::uint32_t round) {
@@ -656,9 +654,13 @@ struct RobotNode::Impl {
       left = left || (m.stage == backend::DgsStage::pose && it->second.finished);
     round->agent.receive(m);
     for (const backend::DgsMessage& reply : round->agent.replies()) {
-      messenger.send(reply.to, withMembers(toWire(reply), round->group, round->origin), now);
+      sendDgs(reply);
       count("dgs_stragglers_answered");
     }
+  }
+
+  void sendDgs(const backend::DgsMessage& m) {
+    messenger.send(m.to, withMembers(toWire(m), round->group, round->origin), now);
   }
 
   /// One DGS step a tick, then the refinement; the estimates taken when the round is done.
@@ -676,11 +678,7 @@ struct RobotNode::Impl {
       if (!membersInStep()) return;
       round->agent.iterate();
       round->progressed = now;
-      round->dgs_sent.clear();
-      for (const backend::DgsMessage& m : round->agent.outgoing()) {
-        round->dgs_sent.emplace_back(m.to, withMembers(toWire(m), round->group, round->origin));
-        messenger.send(m.to, round->dgs_sent.back().second, now);
-      }
+      for (const backend::DgsMessage& m : round->agent.outgoing()) sendDgs(m);
       round->dgs_last_sent = now;
       if (round->agent.stage() != backend::DgsStage::done) return;
       const int rotation = round->agent.stageIterations(backend::DgsStage::rotation);
@@ -730,10 +728,11 @@ struct RobotNode::Impl {
   }
 
   void resendDgsStep() {
-    if (round->dgs_sent.empty() || now - round->dgs_last_sent < kDgsResend) return;
-    for (const auto& [to, body] : round->dgs_sent) messenger.send(to, body, now);
+    const std::vector<backend::DgsMessage> last = round->agent.outgoing();
+    if (last.empty() || now - round->dgs_last_sent < kDgsResend) return;
+    for (const backend::DgsMessage& m : last) sendDgs(m);
     round->dgs_last_sent = now;
-    count("dgs_resent", static_cast<double>(round->dgs_sent.size()));
+    count("dgs_resent", static_cast<double>(last.size()));
   }
 
   /// Ends the round's refinement before its schedule did (a member gone
