@@ -38,15 +38,26 @@ struct RobotBound {
   double run_joint = 0.0;
   double optimum_joint = 0.0;
   double exact_joint = 0.0;
+  /// The robot left the swarm mid-run (`left_at_s` in the run's metrics.json).
+  bool left = false;
 };
 
 /// The chi-square of the run's joint graph (odometry, own loops, each
 /// inter-robot loop once; no robust loss) at the robots' final estimates, each
 /// robot's own keyframes where it left them, and at the optimum. Their ratio
 /// is how far the distributed solve stopped from the optimum.
+///
+/// When robots left mid-run, the same over the robots that stayed (their
+/// factors and the loops between them): a robot that left keeps the
+/// estimates it held then, and loops to it that no round took in before it
+/// left cannot be reconciled by anyone, so the joint figure mixes what the
+/// rest could not fix with how consistent they left their own maps.
 struct JointCosts {
   double run = 0.0;
   double optimum = 0.0;
+  std::vector<std::string> left;  ///< the robots that left, in id order
+  double stayed_run = 0.0;
+  double stayed_optimum = 0.0;
 };
 
 /// The bound of the run in folder `run` (outputs of `dcl-slam run`) of the

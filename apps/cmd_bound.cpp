@@ -14,6 +14,7 @@
 
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <nlohmann/json.hpp>
 
 #include <dcl/backend/centralized_solver.hpp>
@@ -24,6 +25,7 @@
 #include <dcl/eval/association.hpp>
 #include <dcl/eval/ate.hpp>
 #include <dcl/io/dataset.hpp>
+#include <dcl/io/file.hpp>
 #include <dcl/io/g2o.hpp>
 #include <dcl/io/pose_file.hpp>
 
@@ -81,6 +83,25 @@ RobotGraph readRobot(const std::string& run, const io::DatasetSpec& spec, std::s
     r.T_world_gt.push_back(*gt);
   }
   return r;
+}
+
+/// The robots the run's metrics.json says left mid-run (`left_at_s`); none
+/// when the run has no metrics.json (the outputs of `dcl-slam robot`).
+std::set<std::string> robotsThatLeft(const std::string& run) {
+  const std::string path = run + "/metrics.json";
+  if (!std::filesystem::exists(path)) return {};
+  const std::vector<char> text = io::readFile(path);
+  const Json j = Json::parse(text.begin(), text.end(), nullptr, false);
+  if (j.is_discarded() || !j.is_object() || !j.contains("robots") || !j["robots"].is_array())
+    throw core::FileError({.path = path}, "not a run's metrics (a JSON object with 'robots')");
+  std::set<std::string> left;
+  for (const Json& r : j["robots"]) {
+    if (!r.is_object() || !r.contains("name") || !r["name"].is_string())
+      throw core::FileError({.path = path}, "a robot without a 'name'");
+    if (r.contains("left_at_s") && !r["left_at_s"].is_null())
+      left.insert(r["name"].get<std::string>());
+  }
+  return left;
 }
 
 /// Every robot of the run in folder `run` of the dataset in folder `dataset`.
@@ -352,9 +373,12 @@ void runBound(const BoundOptions& o) {
              {"dataset", o.dataset},
              {"cost_run", costs.run},
              {"cost_optimum", costs.optimum},
+             {"left", costs.left},
+             {"cost_run_stayed", costs.stayed_run},
+             {"cost_optimum_stayed", costs.stayed_optimum},
              {"robots", Json::array()}};
     for (const RobotBound& r : robots) {
-      Json j{{"name", r.name}};
+      Json j{{"name", r.name}, {"left", r.left}};
       for (const auto& [key, field] : columns) j[std::string("ate_") + key] = r.*field;
       for (const auto& [key, field] : joint_columns) j[std::string("ate_joint_") + key] = r.*field;
       out["robots"].push_back(j);
@@ -374,7 +398,7 @@ void runBound(const BoundOptions& o) {
   fmt::print("{:<10}{:>12}{:>12}{:>12}{:>12}{:>12}\n", "robot", "odometry", "own loops", "the run",
              "optimum", "loops exact");
   for (const RobotBound& r : robots) {
-    fmt::print("{:<10}", r.name);
+    fmt::print("{:<10}", r.left ? r.name + " (left)" : r.name);
     for (const auto& [key, field] : columns) fmt::print("{:>12}", cell(r.*field));
     fmt::print("\n");
   }
@@ -401,6 +425,12 @@ void runBound(const BoundOptions& o) {
   fmt::print("\nJoint graph's chi-square: the run {:.6g}, the optimum {:.6g}", costs.run,
              costs.optimum);
   if (costs.optimum > 0.0) fmt::print(" ({:.3f} times)", costs.run / costs.optimum);
+  fmt::print("\n");
+  if (costs.left.empty()) return;
+  fmt::print("Without the robots that left ({}): the run {:.6g}, the optimum {:.6g}",
+             fmt::join(costs.left, " "), costs.stayed_run, costs.stayed_optimum);
+  if (costs.stayed_optimum > 0.0)
+    fmt::print(" ({:.3f} times)", costs.stayed_run / costs.stayed_optimum);
   fmt::print("\n");
 }
 
@@ -467,25 +497,38 @@ void runNoise(const BoundOptions& o) {
 std::vector<RobotBound> computeBound(const std::string& run, const std::string& dataset,
                                      JointCosts* costs) {
   const std::vector<RobotGraph> robots = readRun(run, dataset);
+  const std::set<std::string> left = robotsThatLeft(run);
   backend::SolverConfig solver;
   solver.max_iterations = 200;
   // From the run's estimates, and from the chordal initialisation: a run whose
   // robots ended in frames of different rounds is a poor start, and
   // Levenberg-Marquardt can settle in a local minimum from it. The lower cost wins.
-  const auto solved = [&](Factors factors) {
-    backend::PoseGraph g = jointGraph(robots, factors);
+  const auto solved = [&](Factors factors, const std::vector<RobotGraph>& of) {
+    backend::PoseGraph g = jointGraph(of, factors);
     backend::PoseGraph chordal = g;
     const double from_run = backend::solveCentralized(g, solver).final_cost;
     backend::SolverConfig from_scratch = solver;
     from_scratch.initialisation = "chordal";
     return backend::solveCentralized(chordal, from_scratch).final_cost < from_run ? chordal : g;
   };
-  const backend::PoseGraph odometry = solved(Factors::odometry);
-  const backend::PoseGraph own_loops = solved(Factors::own_loops);
-  const backend::PoseGraph optimum = solved(Factors::joint);
-  const backend::PoseGraph exact = solved(Factors::exact);
-  if (costs != nullptr)
+  const backend::PoseGraph odometry = solved(Factors::odometry, robots);
+  const backend::PoseGraph own_loops = solved(Factors::own_loops, robots);
+  const backend::PoseGraph optimum = solved(Factors::joint, robots);
+  const backend::PoseGraph exact = solved(Factors::exact, robots);
+  if (costs != nullptr) {
     *costs = {backend::graphCost(jointGraph(robots, Factors::joint)), backend::graphCost(optimum)};
+    std::vector<RobotGraph> stayed;
+    for (const RobotGraph& r : robots) {
+      if (left.contains(r.name))
+        costs->left.push_back(r.name);
+      else
+        stayed.push_back(r);
+    }
+    if (!costs->left.empty() && !stayed.empty()) {
+      costs->stayed_run = backend::graphCost(jointGraph(stayed, Factors::joint));
+      costs->stayed_optimum = backend::graphCost(solved(Factors::joint, stayed));
+    }
+  }
   backend::PoseGraph run_graph;  ///< every robot's own keyframes where the run left them
   for (const RobotGraph& r : robots)
     for (const auto& [key, T] : r.graph.nodes()) run_graph.addNode(key, T);
@@ -497,7 +540,7 @@ std::vector<RobotBound> computeBound(const std::string& run, const std::string& 
     const RobotGraph& r = robots[i];
     out.push_back({r.name, ateOf(r, odometry), ateOf(r, own_loops), ateOf(r, r.graph),
                    ateOf(r, optimum), ateOf(r, exact), run_joint[i], optimum_joint[i],
-                   exact_joint[i]});
+                   exact_joint[i], left.contains(r.name)});
   }
   return out;
 }

@@ -92,6 +92,9 @@ struct DgsAgent::Impl {
   std::vector<bool> given_fixed;           ///< per own node, fixed in the local graph
   std::map<core::RobotId, std::set<core::PoseKey>> separators;  ///< own keys per neighbour
   std::set<core::PoseKey> needed;  ///< neighbours' nodes this robot's factors touch
+  /// Neighbours' nodes `local` holds fixed: constant separators of every
+  /// round whose group leaves their robot out.
+  std::map<core::PoseKey, Eigen::Isometry3d> given_held;
   std::map<core::PoseKey, Eigen::Isometry3d> estimates;
   std::size_t factorizations = 0;
   std::size_t rejected = 0;
@@ -102,6 +105,7 @@ struct DgsAgent::Impl {
   std::set<core::RobotId> group;
   std::vector<bool> fixed;   ///< given_fixed plus the anchor
   std::vector<bool> member;  ///< per separator: its neighbour is in the group
+  std::vector<bool> held;    ///< per separator: its node is held (its robot out of the group)
   int step = 0;
   std::array<int, 2> stage_steps{0, 0};
   bool initialised = false;
@@ -134,6 +138,8 @@ struct DgsAgent::Impl {
     for (const dgs::Edge& e : block.separators()) {
       separators[e.other.robot].insert(block.keys()[e.own()]);
       needed.insert(e.other);
+      if (local.hasNode(e.other) && local.isFixed(e.other))
+        given_held.emplace(e.other, local.estimate(e.other));
     }
     for (int i = 0; i < block.size(); ++i) estimates.emplace(block.keys()[i], initial[i]);
   }
@@ -145,18 +151,30 @@ struct DgsAgent::Impl {
     stage = DgsStage::rotation;
     round = number;
     group = members;
-    fixed = given_fixed;
-    const bool fixes_own = std::find(fixed.begin(), fixed.end(), true) != fixed.end();
-    if (*group.begin() == robot && !fixes_own) fixed[0] = true;  // the anchor's lowest node
     member.clear();
-    for (const dgs::Edge& e : block.separators()) member.push_back(group.contains(e.other.robot));
+    held.clear();
+    neighbour_rotations.clear();
+    neighbour_poses.clear();
+    neighbour_linearisation.clear();
+    for (const dgs::Edge& e : block.separators()) {
+      member.push_back(group.contains(e.other.robot));
+      const auto value = given_held.find(e.other);
+      held.push_back(!member.back() && value != given_held.end());
+      if (!held.back()) continue;
+      neighbour_rotations[e.other] = value->second.linear();
+      neighbour_linearisation[e.other] = value->second.linear();
+      neighbour_poses[e.other] = value->second;
+    }
+    // The gauge: the own fixed nodes, else held separators, else (on the
+    // group's lowest robot) the lowest own node.
+    fixed = given_fixed;
+    const bool anchored = std::find(fixed.begin(), fixed.end(), true) != fixed.end() ||
+                          std::find(held.begin(), held.end(), true) != held.end();
+    if (*group.begin() == robot && !anchored) fixed[0] = true;
     step = 0;
     stage_steps = {0, 0};
     views = {};
     progress = {};
-    neighbour_rotations.clear();
-    neighbour_poses.clear();
-    neighbour_linearisation.clear();
     linearisation_sent.clear();
     rotations.clear();
     for (const Eigen::Isometry3d& T : initial) rotations.push_back(T.linear());
@@ -258,6 +276,10 @@ struct DgsAgent::Impl {
     std::vector<bool> out(block.separators().size(), false);
     for (std::size_t i = 0; i < out.size(); ++i) {
       const dgs::Edge& e = block.separators()[i];
+      if (held[i]) {
+        out[i] = true;
+        continue;
+      }
       if (!member[i]) continue;
       const auto view = views[s].find(e.other.robot);
       if (view == views[s].end() || !view->second.initialised) continue;
@@ -365,8 +387,8 @@ struct DgsAgent::Impl {
       poses.delta.assign(block.size(), Eigen::Vector3d::Zero());
       poses.t.resize(block.size());
       for (int i = 0; i < block.size(); ++i) {
-        const bool held = fixed[i] || (layout && layout->unknown[i] < 0);
-        poses.R_hat[i] = held ? initial[i].linear() : core::projectToSO3(rotations[i]);
+        const bool pinned = fixed[i] || (layout && layout->unknown[i] < 0);
+        poses.R_hat[i] = pinned ? initial[i].linear() : core::projectToSO3(rotations[i]);
         poses.t[i] = initial[i].translation();
       }
       stage = DgsStage::pose;

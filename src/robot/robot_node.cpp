@@ -569,9 +569,20 @@ struct RobotNode::Impl {
   }
 
   /// The own part of the graph a round optimises: own poses at their latest
-  /// estimates, own factors, and the accepted loops to the group's members.
-  [[nodiscard]] backend::PoseGraph roundGraph(const std::set<core::RobotId>& members) const {
+  /// estimates, own factors, the accepted loops to the group's members, and,
+  /// in a round in the current frame, the loops to robots out of the group
+  /// held where the rounds in this frame left those robots (hold_absent):
+  /// what the round moves stays where they placed their maps, so the swarm's
+  /// maps still agree when they cannot hear of it. Held loops anchor the
+  /// round's gauge, in DGS and in the refinement, where the lowest member's
+  /// first pose would otherwise be pinned: the two would pull apart.
+  [[nodiscard]] backend::PoseGraph roundGraph(const std::set<core::RobotId>& members,
+                                              const RoundOrigin& origin) {
     backend::PoseGraph g = ownGraph();
+    if (config.hold_absent && frame && origin.frame == frame) {
+      if (const std::size_t held = addHeldLoops(g, members); held > 0)
+        count("round_held_loops", static_cast<double>(held));
+    }
     for (const auto& [robot, n] : neighbours) {
       if (!members.contains(robot)) continue;
       for (const auto& [id, f] : n.loops) {
@@ -587,7 +598,7 @@ struct RobotNode::Impl {
   void join(std::uint32_t number, const std::set<core::RobotId>& members,
             const RoundOrigin& origin) {
     if (round) leave("dgs_rounds_abandoned");
-    backend::PoseGraph graph = roundGraph(members);
+    backend::PoseGraph graph = roundGraph(members, origin);
     round.emplace(Round{number,
                         members,
                         origin,
@@ -866,15 +877,16 @@ struct RobotNode::Impl {
       for (const auto& [key, T] : round->agent.estimates())
         if (key.robot == self) local.addNode(key, T);
     }
-    for (const backend::Factor& f : round->graph.factors()) local.addFactor(f);
-    if (self == *round->group.begin() && local.size() > 0) local.fix(local.nodes().begin()->first);
-    // Loops to robots out of the group, held where the rounds in this frame
-    // left those robots: what this round moves stays where they placed their
-    // maps, so the swarm's maps still agree when they cannot hear of it.
-    if (config.hold_absent && frame && round->origin.frame == frame) {
-      if (const std::size_t held = addHeldLoops(local, round->group); held > 0)
-        count("refine_held_loops", static_cast<double>(held));
+    bool holds = false;  // loops to absent robots (roundGraph): they anchor the gauge
+    for (const auto& [key, T] : round->graph.nodes()) {
+      if (key.robot == self || !round->graph.isFixed(key)) continue;
+      local.addNode(key, T);
+      local.fix(key);
+      holds = true;
     }
+    for (const backend::Factor& f : round->graph.factors()) local.addFactor(f);
+    if (self == *round->group.begin() && !holds && local.size() > 0)
+      local.fix(local.nodes().begin()->first);
     round->refine.emplace(Refinement{backend::RefineAgent(self, local, config.refine),
                                      std::nullopt,
                                      0,

@@ -333,6 +333,10 @@ class Demo(unittest.TestCase):
         # Solved from the run's estimates, the optimum costs no more than they do.
         self.assertGreater(bound["cost_optimum"], 0.0)
         self.assertLessEqual(bound["cost_optimum"], bound["cost_run"] * (1.0 + 1e-9))
+        # No robot left: no figures without them.
+        self.assertEqual(bound["left"], [])
+        self.assertFalse(any(r["left"] for r in bound["robots"]))
+        self.assertEqual(bound["cost_run_stayed"], 0.0)
         # A run of another dataset is named, with the robot it lacks.
         other = os.path.join(out, "other")
         os.makedirs(os.path.join(other, "a"))
@@ -1201,6 +1205,27 @@ class Run(unittest.TestCase):
             rows = [line for line in f if line.strip() and not line.startswith("#")]
         self.assertEqual(len(rows), robots["b"]["keyframes"])
         self.assertGreater(len(rows), 0)
+        # bench bound names the robot that left, and the chi-square of the
+        # graph of those that stayed, at the run and at its optimum.
+        _, stdout, _ = run("bench", "bound", "--run", out, "--dataset", self.dataset, "--json")
+        bound = json.loads(stdout)
+        self.assertEqual(bound["left"], ["b"])
+        self.assertEqual([r["left"] for r in bound["robots"]], [False, True, False])
+        self.assertGreater(bound["cost_optimum_stayed"], 0.0)
+        self.assertLessEqual(bound["cost_optimum_stayed"],
+                             bound["cost_run_stayed"] * (1.0 + 1e-9))
+        # Fewer factors than the whole graph's.
+        self.assertLess(bound["cost_optimum_stayed"], bound["cost_optimum"])
+        _, stdout, _ = run("bench", "bound", "--run", out, "--dataset", self.dataset)
+        self.assertIn("b (left)", stdout)
+        self.assertIn("Without the robots that left (b):", stdout)
+        # A metrics.json that is not a run's is named.
+        with open(os.path.join(out, "metrics.json"), "w") as f:
+            f.write("[]")
+        code, _, err = run("bench", "bound", "--run", out, "--dataset", self.dataset, check=False)
+        self.assertEqual(code, 1)
+        self.assertIn("metrics.json", err)
+        self.assertIn("'robots'", err)
         # Without anyone leaving, every robot says so.
         for r in self.metrics[0]["robots"]:
             self.assertIsNone(r["left_at_s"], r["name"])

@@ -562,6 +562,93 @@ TEST(Dgs, VanishingBeforeTheFirstStepAbortsAndRetries) {
   EXPECT_TRUE(vanished.estimate(key(0, 0)).matrix() == graph.estimate(key(0, 0)).matrix());
 }
 
+/// Every agent of `group` iterated in Algorithm 1's order over `graph`, its
+/// messages delivered at once, until all are done (at most `sweeps`).
+void sweepUntilDone(std::map<core::RobotId, DgsAgent>& agents, const PoseGraph& graph,
+                    const std::set<core::RobotId>& group, int sweeps) {
+  const std::vector<core::RobotId> order = optimisationOrder(graph, group);
+  const auto done = [&] {
+    return std::all_of(group.begin(), group.end(),
+                       [&](core::RobotId r) { return agents.at(r).stage() == DgsStage::done; });
+  };
+  for (int sweep = 0; sweep < sweeps && !done(); ++sweep) {
+    for (const core::RobotId r : order) {
+      agents.at(r).iterate();
+      for (const DgsMessage& m : agents.at(r).outgoing()) agents.at(m.to).receive(m);
+    }
+  }
+}
+
+TEST(DgsAgent, HeldSeparatorsOfAnAbsentRobotAnchorTheRound) {
+  // distributed-mapper's 4 robots; robot 0 is gone, its poses held where the
+  // whole graph's optimum puts them. Robots 1-3 start 3 m and 0.3 rad away
+  // from there (their frame drifted since). They hold their loops to robot 0:
+  // DGS among them reaches the centralized two-stage estimate of the graph
+  // with robot 0 fixed there, the lowest of them pinning nothing (a pin would
+  // pull against the held loops).
+  const core::RobotId gone = robotId(0);
+  PoseGraph optimum = distributedMapper(4);
+  chordalInitialise(optimum);
+  (void)solveCentralized(optimum);
+  PoseGraph graph = optimum;
+  const Eigen::Isometry3d drift =
+      core::makePose(Eigen::Vector3d(3.0, -1.5, 0.5),
+                     Eigen::AngleAxisd(0.3, Eigen::Vector3d::UnitZ()).toRotationMatrix());
+  for (const auto& [k, T] : optimum.nodes())
+    if (k.robot != gone) graph.setEstimate(k, drift * T);
+  PoseGraph reference = graph;  // robot 0 fixed at the optimum, the rest as given
+  for (const auto& [k, T] : optimum.nodes()) {
+    if (k.robot != gone) continue;
+    reference.setEstimate(k, T);
+    reference.fix(k);
+  }
+  chordalInitialise(reference);
+
+  const std::set<core::RobotId> group{robotId(1), robotId(2), robotId(3)};
+  std::map<core::RobotId, DgsAgent> agents;
+  std::size_t held = 0;
+  DgsConfig tight;
+  tight.rotation_threshold = 1e-8;
+  tight.pose_threshold = 1e-8;
+  for (auto [robot, local] : partitionByRobot(graph)) {
+    if (robot == gone) continue;
+    for (const Factor& f : graph.factors()) {
+      const bool touches = f.from.robot == robot || f.to.robot == robot;
+      const core::PoseKey& other = f.from.robot == robot ? f.to : f.from;
+      if (!touches || other.robot != gone) continue;
+      local.addNode(other, optimum.estimate(other));
+      local.fix(other);
+      ++held;
+    }
+    agents.emplace(robot, DgsAgent(robot, std::move(local), tight));
+    agents.at(robot).startRound(group, 7);
+  }
+  ASSERT_GT(held, 0u);
+  sweepUntilDone(agents, graph, group, 2000);
+  double worst = 0.0;
+  for (const core::RobotId r : group) {
+    ASSERT_EQ(agents.at(r).stage(), DgsStage::done) << core::robotName(r);
+    for (const auto& [k, T] : agents.at(r).estimates())
+      worst = std::max(worst, core::logSE3(reference.estimate(k).inverse() * T).norm());
+  }
+  EXPECT_LT(worst, 1e-4);
+  // Without robot 0 the same group solves its own loops only, pinned at
+  // robot 1's first pose: its map stays drifted from robot 0's.
+  PoseGraph alone = without(graph, gone);
+  (void)runDgs(alone, tight);
+  PoseGraph with_held = optimum;
+  PoseGraph with_alone = optimum;
+  for (const core::RobotId r : group) {
+    for (const auto& [k, T] : agents.at(r).estimates()) {
+      with_held.setEstimate(k, T);
+      with_alone.setEstimate(k, alone.estimate(k));
+    }
+  }
+  std::printf("held: cost %.6g, alone: %.6g, optimum %.6g\n", graphCost(with_held),
+              graphCost(with_alone), graphCost(optimum));
+  EXPECT_LT(graphCost(with_held), 0.2 * graphCost(with_alone));
+}
+
 TEST(Dgs, RobotsWithoutAcceptedLoopsOptimiseAlone) {
   PoseGraph graph;
   const PoseGraph split = splitIntoRobots(readGraph("3d/smallGrid3D.g2o"), 2);

@@ -532,8 +532,8 @@ TEST(RobotNode, RoundsHoldTheLoopsOfARobotThatLeft) {
   const double with = loopCost(held, 0, 1);
   const double without = loopCost(free, 0, 1);
   std::printf("a-b loops' cost: %.6g held, %.6g not\n", with, without);
-  EXPECT_GT(held.nodes[0]->counters().at("refine_held_loops"), 0.0);
-  EXPECT_FALSE(free.nodes[0]->counters().contains("refine_held_loops"));
+  EXPECT_GT(held.nodes[0]->counters().at("round_held_loops"), 0.0);
+  EXPECT_FALSE(free.nodes[0]->counters().contains("round_held_loops"));
   EXPECT_LT(with, 0.5 * without);
 }
 

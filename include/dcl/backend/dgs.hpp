@@ -139,7 +139,11 @@ class DgsAgent {
   /// The agent of robot `robot` over `local`: its own nodes (with their
   /// initial estimates, odometry-composed when unknown), every factor touching
   /// them (inter-robot ones name neighbours' nodes the graph need not hold).
-  /// Nodes of `local` fixed and owned by `robot` stay fixed. Throws core::Error
+  /// Nodes of `local` fixed and owned by `robot` stay fixed. A neighbour's
+  /// node `local` holds and fixes is a held separator: in a round whose group
+  /// leaves its robot out (a robot gone out of range) its value is a constant
+  /// in use at every step, where a factor to an absent robot would otherwise
+  /// be left out. Throws core::Error
   /// when the robot has no node, a factor's information is not finite or has a
   /// negative trace in a block, or the configuration is out of range.
   DgsAgent(core::RobotId robot, PoseGraph local, const DgsConfig& config = {});
@@ -154,9 +158,9 @@ class DgsAgent {
 
   /// Starts a round with `group` (the robots connected to this one, itself
   /// included; the lowest id anchors the gauge: its lowest node is held fixed
-  /// unless its local graph fixes one). Factors to robots outside the group
-  /// are left out of this round. Throws core::Error when the group does not
-  /// hold this robot.
+  /// unless its local graph fixes one or it has a held separator). Factors to
+  /// robots outside the group are left out of this round, but for held
+  /// separators. Throws core::Error when the group does not hold this robot.
   void startRound(const std::set<core::RobotId>& group);
   /// The same with the round's number given (every robot of a round uses the
   /// same; the one-argument form counts up from the last).

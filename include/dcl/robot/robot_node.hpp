@@ -140,12 +140,15 @@ struct RobotConfig {
   /// Without it, loops closed after a robot's last round never reach the
   /// keyframes that round placed.
   bool solve_alone = true;
-  /// In a round's refinement, hold the accepted loops to neighbours out of the
-  /// group (out of range, or gone) where the last rounds left those
-  /// neighbours (a round in another frame takes them along with this robot's
-  /// keyframes): what the round moves stays where they placed their maps,
-  /// which they cannot hear of. Without it a round optimises its members'
-  /// loops only, and the swarm's maps part where the absent robots met it.
+  /// In a round (DGS and its refinement), hold the accepted loops to
+  /// neighbours out of the group (out of range, or gone) where the last
+  /// rounds left those neighbours (a round in another frame takes them along
+  /// with this robot's keyframes): what the round moves stays where they
+  /// placed their maps, which they cannot hear of. Held poses are constants
+  /// that anchor the round's gauge: a member holding some pins none of its
+  /// own poses. Without it a round optimises its members' loops only, its
+  /// lowest member's first pose pinned, and the swarm's maps part where the
+  /// absent robots met it.
   bool hold_absent = true;
 };
 
