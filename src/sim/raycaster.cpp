@@ -45,6 +45,16 @@ void checkWorld(const World& world) {
   }
 }
 
+/// Embree picks its kernels by the CPU it runs on (SSE, AVX2, AVX-512), and
+/// their arithmetic differs in the last bits: the same scan cast on two
+/// machines differed in most of its points, enough to turn a tracked turn
+/// into a lost one. Pinned to SSE2, the kernels every x86-64 CPU runs, a
+/// simulated dataset is the same bits everywhere (`ctest -R ScanChecksums`,
+/// which also passes with glibc's own AVX2 and FMA paths switched off).
+/// It costs speed: an HDL-64 sweep takes about 1.6 times as long as with
+/// AVX-512 (BENCHMARKS.md, "Simulator").
+constexpr const char* kDeviceConfig = "isa=sse2";
+
 /// Rays per packet. On this project's machine (AVX-512) a whole HDL-64 sweep
 /// of a 10^5-triangle street took 12.3 ms in 16-ray packets of a column's
 /// neighbouring beams, 13.3 ms as a stream (rtcIntersect1M) and 24.6 ms one
@@ -158,7 +168,7 @@ RayHit RayCaster::Impl::readHit(const RTCRayHit& rayhit) const {
 
 RayCaster::RayCaster(const World& world) : impl_(std::make_unique<Impl>()) {
   checkWorld(world);
-  impl_->device.reset(rtcNewDevice(nullptr));
+  impl_->device.reset(rtcNewDevice(kDeviceConfig));
   if (!impl_->device) {
     throw core::Error("Embree could not create a device (error " +
                       std::to_string(static_cast<int>(rtcGetDeviceError(nullptr))) +
