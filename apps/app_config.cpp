@@ -39,6 +39,7 @@ robot::RobotConfig robotConfig(const AppConfig& c) {
   r.index = c.place.evaluation.index;
   r.verification = c.verification;
   r.pcm = c.pcm;
+  r.loop_check = c.loop_check;
   r.messenger = c.messenger;
   r.dgs = c.dgs;
   r.dgs.max_rotation_iterations = std::min(r.dgs.max_rotation_iterations, c.robot.dgs_steps);
@@ -117,6 +118,12 @@ void validate(const AppConfig& config, const std::string& source) {
   });
   checkField(source, "pcm.threshold", [&] {
     if (!(config.pcm.threshold > 0.0)) throw core::Error("must be positive");
+  });
+  checkField(source, "pcm.min_loops", [&] {
+    if (config.pcm.min_loops == 0) throw core::Error("must be at least 1");
+  });
+  checkField(source, "loop_check.threshold", [&] {
+    if (!(config.loop_check.threshold > 0.0)) throw core::Error("must be positive");
   });
 }
 

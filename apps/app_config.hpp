@@ -9,6 +9,7 @@
 
 #include <dcl/backend/dgs.hpp>
 #include <dcl/backend/distributed_refine.hpp>
+#include <dcl/backend/loop_check.hpp>
 #include <dcl/backend/pcm.hpp>
 #include <dcl/comm/dds_transport.hpp>
 #include <dcl/comm/messenger.hpp>
@@ -118,6 +119,7 @@ struct AppConfig {
   backend::DgsConfig dgs;                         ///< distributed pose-graph optimisation
   backend::RefineConfig refine;                   ///< distributed refinement after DGS
   backend::PcmConfig pcm;                         ///< inter-robot loop outlier rejection
+  backend::LoopCheckConfig loop_check;            ///< after PCM: loops the group cannot explain
   comm::MessengerConfig messenger;                ///< neighbours, heartbeats, retransmission
   comm::SimRadioConfig radio;                     ///< the simulated radio of swarm runs
   comm::DdsConfig dds;                            ///< Cyclone DDS between robot processes
@@ -136,6 +138,8 @@ struct AppConfig {
     v.section("dgs", dgs, "distributed Gauss-Seidel pose-graph optimisation");
     v.section("refine", refine, "distributed nonlinear refinement after DGS");
     v.section("pcm", pcm, "PCM outlier rejection of inter-robot loops");
+    v.section("loop_check", loop_check,
+              "after PCM: inter-robot loops the group's joint solution cannot explain");
     v.section("messenger", messenger, "neighbours, heartbeats and retransmission between robots");
     v.section("radio", radio, "the simulated radio of swarm runs in one process");
     v.section("dds", dds, "Cyclone DDS between robot processes");

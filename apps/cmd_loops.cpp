@@ -20,6 +20,7 @@
 #include <nlohmann/json.hpp>
 #include <tbb/parallel_for.h>
 
+#include <dcl/backend/loop_check.hpp>
 #include <dcl/backend/pcm.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/core/progress.hpp>
@@ -30,6 +31,7 @@
 #include <dcl/place/place_index.hpp>
 #include <dcl/registration/cloud_codec.hpp>
 #include <dcl/registration/verification.hpp>
+#include <dcl/robot/robot_node.hpp>
 #include <dcl/sim/sim_source.hpp>
 
 #include "commands.hpp"
@@ -126,7 +128,8 @@ struct Candidate {
   double error_m = 0.0;    ///< translation error of the verified relative pose
   double error_deg = 0.0;  ///< rotation error of the verified relative pose
   bool correct = false;    ///< verified, and within the error bounds of ground truth
-  bool kept = false;       ///< PCM kept it
+  bool kept = false;       ///< PCM kept it, and the check after it did not withdraw it
+  bool withdrawn = false;  ///< PCM kept it, the check after it withdrew it
 };
 
 /// Matches refused as ambiguous (PlaceIndexConfig::distinct_ratio).
@@ -141,11 +144,18 @@ std::vector<Candidate> search(const std::vector<Robot>& robots, std::size_t quer
   std::vector<Candidate> out;
   const Robot& q = robots[querier];
   const Robot& v = robots[verifier];
+  const auto positionOn = [](const Robot& robot) -> place::KeyframePosition {
+    return [&robot](core::KeyframeId id) {
+      return Eigen::Vector3d(robot.keyframes.at(id.value()).T_odom_keyframe.translation());
+    };
+  };
   for (std::size_t i = 0; i < q.keyframes.size(); ++i) {
+    // What the querying robot sends with its descriptor: how closely its own
+    // route repeated the place before (RobotNode does the same).
+    const std::optional<float> look_alike = q.index->lookAlikeDistance(
+        *q.descriptions[i], q.keyframes[i].T_odom_keyframe.translation(), positionOn(q), i);
     const place::DistinctMatch found =
-        v.index->queryDistinct(*q.descriptions[i], [&v](core::KeyframeId id) {
-          return Eigen::Vector3d(v.keyframes.at(id.value()).T_odom_keyframe.translation());
-        });
+        v.index->queryDistinct(*q.descriptions[i], positionOn(v), look_alike);
     if (found.refused) {
       ++refused.count;
       const Eigen::Isometry3d& T_match = v.T_world_keyframe[found.refused->slot];
@@ -188,19 +198,23 @@ void verify(const std::vector<Robot>& robots, Candidate& c, const AppConfig& con
   c.error_deg = Eigen::AngleAxisd(error.linear()).angle() * 180.0 / M_PI;
 }
 
-backend::Factor loopFactor(const std::vector<Robot>& robots, const Candidate& c) {
+/// The loop as a robot node keeps it: its covariance with the configured loop noise.
+backend::Factor loopFactor(const std::vector<Robot>& robots, const Candidate& c,
+                           const robot::RobotConfig& node) {
   backend::Factor f;
   f.from = {robots[c.verifier].id, robots[c.verifier].keyframes[c.match].id};
   f.to = {robots[c.querier].id, robots[c.querier].keyframes[c.query].id};
   f.T_from_to = c.verification.T_candidate_query;
-  f.information = backend::informationFromCovariance(c.verification.covariance);
+  f.information =
+      backend::informationFromCovariance(robot::loopCovariance(c.verification.covariance, node));
   f.kind = backend::FactorKind::inter_loop;
   return f;
 }
 
 /// PCM over each robot pair; marks the candidates it kept.
 Json runPcm(const std::vector<Robot>& robots, std::vector<Candidate>& candidates,
-            const backend::PcmConfig& config) {
+            const robot::RobotConfig& node) {
+  const backend::PcmConfig& config = node.pcm;
   Json pairs = Json::array();
   for (std::size_t a = 0; a < robots.size(); ++a)
     for (std::size_t b = a + 1; b < robots.size(); ++b) {
@@ -215,18 +229,46 @@ Json runPcm(const std::vector<Robot>& robots, std::vector<Candidate>& candidates
         if (pair && c.verification.accepted) verified.push_back(&c);
       }
       std::size_t loops = 0;
-      for (const Candidate* c : verified) loops += pcm.addLoop(loopFactor(robots, *c)) ? 1 : 0;
+      for (const Candidate* c : verified)
+        loops += pcm.addLoop(loopFactor(robots, *c, node)) ? 1 : 0;
       const backend::PcmDecision& decision = pcm.decide();
       std::set<backend::LoopId> kept;
       for (const backend::Factor& f : decision.accepted) kept.insert(backend::loopId(f));
       for (Candidate* c : verified)
-        c->kept = kept.contains(backend::loopId(loopFactor(robots, *c)));
+        c->kept = kept.contains(backend::loopId(loopFactor(robots, *c, node)));
       pairs.push_back({{"robots", robots[a].name + "-" + robots[b].name},
                        {"loops", loops},
                        {"kept", decision.accepted.size()},
                        {"exact", decision.exact}});
     }
   return pairs;
+}
+
+/// The second line of defence, as the robots' rounds apply it: the robots'
+/// own graphs with the loops PCM kept, solved together; a robot pair at a
+/// time, the loops the solution cannot explain are withdrawn. Marks them.
+void checkKeptLoops(const std::vector<Robot>& robots, std::vector<Candidate>& candidates,
+                    const robot::RobotConfig& node) {
+  backend::PoseGraph joint;
+  for (const Robot& r : robots) {
+    for (const auto& [key, T] : r.graph.nodes()) joint.addNode(key, T);
+    for (const backend::Factor& f : r.graph.factors()) joint.addFactor(f);
+  }
+  std::set<backend::LoopId> added;
+  for (const Candidate& c : candidates) {
+    const backend::Factor f = loopFactor(robots, c, node);
+    if (c.kept && added.insert(backend::loopId(f)).second) joint.addFactor(f);
+  }
+  backend::SolverConfig solver;
+  solver.initialisation = "chordal";
+  const std::vector<backend::LoopId> out =
+      backend::withdrawUnexplained(joint, node.loop_check, solver);
+  const std::set<backend::LoopId> withdrawn(out.begin(), out.end());
+  for (Candidate& c : candidates) {
+    if (!c.kept || !withdrawn.contains(backend::loopId(loopFactor(robots, c, node)))) continue;
+    c.kept = false;
+    c.withdrawn = true;
+  }
 }
 
 double ratio(std::size_t a, std::size_t b) {
@@ -236,6 +278,7 @@ double ratio(std::size_t a, std::size_t b) {
 Json metricsOf(const std::vector<Candidate>& candidates, const LoopsOptions& o,
                double true_loop_distance) {
   std::size_t revisits = 0, verified = 0, correct = 0, kept = 0, kept_correct = 0, ransac = 0;
+  std::size_t withdrawn = 0, withdrawn_correct = 0;
   std::size_t bytes = 0;
   registration::VerificationStats stats;
   for (const Candidate& c : candidates) {
@@ -248,6 +291,8 @@ Json metricsOf(const std::vector<Candidate>& candidates, const LoopsOptions& o,
     correct += c.correct ? 1 : 0;
     kept += c.kept ? 1 : 0;
     kept_correct += c.kept && c.correct ? 1 : 0;
+    withdrawn += c.withdrawn ? 1 : 0;
+    withdrawn_correct += c.withdrawn && c.correct ? 1 : 0;
   }
   Json reasons = Json::object();
   for (std::size_t r = 1; r < registration::kRejectReasonCount; ++r) {
@@ -264,6 +309,8 @@ Json metricsOf(const std::vector<Candidate>& candidates, const LoopsOptions& o,
           {"kept", kept},
           {"kept_correct", kept_correct},
           {"kept_wrong", kept - kept_correct},
+          {"withdrawn", withdrawn},
+          {"withdrawn_correct", withdrawn_correct},
           {"precision", kept == 0 ? 1.0 : ratio(kept_correct, kept)},
           {"recall", ratio(kept_correct, correct)},
           {"wire_bytes_mean", ratio(bytes, candidates.size())},
@@ -274,15 +321,16 @@ void writeCsv(const std::string& path, const std::vector<Robot>& robots,
               const std::vector<Candidate>& candidates) {
   std::string s =
       "query_robot,query_keyframe,match_robot,match_keyframe,place_distance,yaw_deg,"
-      "ground_truth_m,verified,reason,inlier_share,fitness,ransac,error_m,error_deg,correct,kept\n";
+      "ground_truth_m,verified,reason,inlier_share,fitness,ransac,error_m,error_deg,correct,kept,"
+      "withdrawn\n";
   for (const Candidate& c : candidates)
     s += fmt::format(
-        "{},{},{},{},{:.4f},{:.2f},{:.3f},{},{},{:.3f},{:.3f},{},{:.3f},{:.3f},{},{}\n",
+        "{},{},{},{},{:.4f},{:.2f},{:.3f},{},{},{:.3f},{:.3f},{},{:.3f},{:.3f},{},{},{}\n",
         robots[c.querier].name, c.query, robots[c.verifier].name, c.match, c.place.distance,
         c.place.yaw_rad * 180.0 / M_PI, c.ground_truth_m, c.verification.accepted ? 1 : 0,
         registration::toString(c.verification.reason), c.verification.inlier_share,
         c.verification.fitness, c.verification.used_ransac ? 1 : 0, c.error_m, c.error_deg,
-        c.correct ? 1 : 0, c.kept ? 1 : 0);
+        c.correct ? 1 : 0, c.kept ? 1 : 0, c.withdrawn ? 1 : 0);
   io::writeFileAtomic(path, [&](std::ostream& out) { out << s; });
 }
 
@@ -327,9 +375,13 @@ void runLoops(const LoopsOptions& o, const AppConfig& config) {
     c.correct =
         c.verification.accepted && c.error_m <= o.max_error_m && c.error_deg <= o.max_error_deg;
 
+  const robot::RobotConfig node = robotConfig(config);
   const auto pcm_start = Clock::now();
-  const Json pairs = runPcm(robots, candidates, config.pcm);
+  const Json pairs = runPcm(robots, candidates, node);
   const double pcm_s = seconds(pcm_start);
+  const auto check_start = Clock::now();
+  checkKeptLoops(robots, candidates, node);
+  const double check_s = seconds(check_start);
 
   Json m = {{"dataset", spec.name}, {"robots", robots.size()}};
   Json keyframes = Json::object();
@@ -342,7 +394,8 @@ void runLoops(const LoopsOptions& o, const AppConfig& config) {
   m["seconds"] = {{"front_end", front_end_s},
                   {"verification", verify_s},
                   {"verification_mean_ms", 1e3 * ratio(1, candidates.size()) * verify_s},
-                  {"pcm", pcm_s}};
+                  {"pcm", pcm_s},
+                  {"loop_check", check_s}};
   std::filesystem::create_directories(o.out);
   io::writeFileAtomic(o.out + "/metrics.json",
                       [&](std::ostream& out) { out << m.dump(2) << "\n"; });
@@ -360,10 +413,12 @@ void runLoops(const LoopsOptions& o, const AppConfig& config) {
   fmt::print("  verified {} ({} correct, {} wrong; {} by the RANSAC fallback)\n",
              l["verified"].get<std::size_t>(), l["verified_correct"].get<std::size_t>(),
              l["verified_wrong"].get<std::size_t>(), l["verified_by_ransac"].get<std::size_t>());
-  fmt::print("  PCM kept {} ({} correct, {} wrong): precision {:.3f}, recall {:.3f}\n",
-             l["kept"].get<std::size_t>(), l["kept_correct"].get<std::size_t>(),
-             l["kept_wrong"].get<std::size_t>(), l["precision"].get<double>(),
-             l["recall"].get<double>());
+  fmt::print(
+      "  PCM and the check after it kept {} ({} correct, {} wrong): precision {:.3f}, "
+      "recall {:.3f}; the check withdrew {} ({} correct)\n",
+      l["kept"].get<std::size_t>(), l["kept_correct"].get<std::size_t>(),
+      l["kept_wrong"].get<std::size_t>(), l["precision"].get<double>(), l["recall"].get<double>(),
+      l["withdrawn"].get<std::size_t>(), l["withdrawn_correct"].get<std::size_t>());
   fmt::print("  wrote {}/metrics.json and loops.csv\n", o.out);
 }
 

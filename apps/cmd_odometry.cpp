@@ -182,13 +182,13 @@ Json accuracyJson(const core::Trajectory& estimate, const core::Trajectory& gt) 
 }
 
 Json framesJson(const FrameLog& log) {
-  std::size_t accepted = 0, degenerate = 0, converged = 0, redeskewed = 0;
+  std::size_t accepted = 0, degenerate = 0, converged = 0, sharp = 0;
   Json problems = Json::object();
   for (const auto& h : log.health) {
     accepted += h.accepted;
     degenerate += h.degenerate;
     converged += h.converged;
-    redeskewed += h.redeskewed;
+    sharp += h.sharp_motion;
     if (!h.problem.empty()) problems[h.problem] = problems.value(h.problem, 0) + 1;
   }
   const eval::Statistics ms = eval::computeStatistics(log.milliseconds);
@@ -196,7 +196,7 @@ Json framesJson(const FrameLog& log) {
           {"accepted", accepted},
           {"converged", converged},
           {"degenerate", degenerate},
-          {"redeskewed", redeskewed},
+          {"sharp_motion", sharp},
           {"problems", problems},
           {"ms_per_frame", statisticsJson(ms)},
           {"frames_per_second", ms.mean > 0 ? 1000.0 / ms.mean : 0.0},
@@ -239,10 +239,11 @@ void writeOutputs(const OdometryOptions& o, const FrameLog& log,
 void printSummary(const Json& m) {
   const Json& f = m["frames"];
   fmt::print(
-      "{} frames ({} accepted, {} degenerate, {} deskewed again), {:.1f} m, {:.1f} ms a frame "
+      "{} frames ({} accepted, {} degenerate, {} with a sharp change of motion), {:.1f} m, {:.1f} "
+      "ms a frame "
       "({:.0f} Hz)\n",
       f["frames"].get<std::size_t>(), f["accepted"].get<std::size_t>(),
-      f["degenerate"].get<std::size_t>(), f["redeskewed"].get<std::size_t>(),
+      f["degenerate"].get<std::size_t>(), f["sharp_motion"].get<std::size_t>(),
       f["distance_m"].get<double>(), f["ms_per_frame"]["mean"].get<double>(),
       f["frames_per_second"].get<double>());
   fmt::print("{} keyframes, {} intra-robot loops ({} candidates rejected)\n",

@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include <dcl/backend/loop_check.hpp>
 #include <dcl/backend/pcm.hpp>
 #include <dcl/backend/pcm_evaluation.hpp>
 #include <dcl/core/error.hpp>
@@ -27,7 +28,8 @@ struct PcmOptions {
   std::string graph;      ///< g2o file or folder of per-robot N.g2o files
   std::string reference;  ///< outlier-free reference (file or folder), optional
   double threshold = 0.0;
-  double min_span = 0.0;            ///< m, PcmConfig::min_span (0: PCM as published)
+  std::size_t min_loops = 1;        ///< PcmConfig::min_loops (1: PCM as published)
+  bool check_loops = false;         ///< then withdraw what the joint solution cannot explain
   bool skip_unknown_lines = false;  ///< skip damaged lines of the graph's files
   bool json = false;
 };
@@ -114,22 +116,27 @@ void printSummary(const Json& m) {
              m["precision"].get<double>(), m["recall"].get<double>());
 }
 
-void runPcmCommand(const PcmOptions& o, backend::PcmConfig config) {
+void runPcmCommand(const PcmOptions& o, backend::PcmConfig config,
+                   const backend::LoopCheckConfig& check_config) {
   if (!(o.threshold > 0.0)) throw core::Error("--threshold must be positive");
   config.threshold = o.threshold;
-  if (!(o.min_span >= 0.0)) throw core::Error("--min-span must not be negative");
-  config.min_span = o.min_span;
+  if (o.min_loops == 0) throw core::Error("--min-loops must be at least 1");
+  config.min_loops = o.min_loops;
   const backend::PoseGraph graph = backend::readMultiRobotGraph(o.graph, o.skip_unknown_lines);
   std::optional<std::set<backend::LoopId>> reference;
   if (!o.reference.empty()) reference = backend::readReferenceLoops(o.reference, graph);
   const auto start = Clock::now();
-  const backend::PcmResult result = backend::runPcm(graph, config);
+  backend::PcmResult result = backend::runPcm(graph, config);
+  const std::size_t withdrawn =
+      o.check_loops ? backend::checkKeptLoops(graph, result, check_config) : 0;
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   Json m = {{"graph", o.graph},
             {"reference", o.reference.empty() ? Json(nullptr) : Json(o.reference)},
             {"robots", robotCount(graph)},
             {"threshold", config.threshold},
-            {"min_span", config.min_span}};
+            {"min_loops", config.min_loops},
+            {"check_loops", o.check_loops},
+            {"withdrawn", withdrawn}};
   m.update(counts(result, reference));
   m["seconds"] = seconds;
   m["pairs"] = pairsJson(result, reference);
@@ -155,14 +162,18 @@ void addPcmCommand(CLI::App& app, const AppConfig& app_config) {
   cmd->add_option("--threshold", o->threshold,
                   "largest squared Mahalanobis distance of a consistent loop pair")
       ->capture_default_str();
-  cmd->add_option("--min-span", o->min_span,
-                  "m, least extent of the kept loops on each trajectory (0, the default here: "
-                  "PCM as published; the SLAM pipeline uses pcm.min_span)")
+  cmd->add_option("--min-loops", o->min_loops,
+                  "fewest mutually consistent loops of a robot pair before they are kept (1, the "
+                  "default here: PCM as published; the SLAM pipeline uses pcm.min_loops)")
       ->capture_default_str();
+  cmd->add_flag("--check-loops", o->check_loops,
+                "then solve the graph with the kept loops, the robots' own factors held stiff, "
+                "and withdraw the loops it cannot explain, at the robot pair with the least "
+                "support (the second line of defence, loop_check)");
   cmd->add_flag("--skip-unknown-lines", o->skip_unknown_lines,
                 "skip (and name) lines of the graph with an unknown tag instead of failing");
   cmd->add_flag("--json", o->json, "print the result as JSON");
-  cmd->callback([o, &app_config] { runPcmCommand(*o, app_config.pcm); });
+  cmd->callback([o, &app_config] { runPcmCommand(*o, app_config.pcm, app_config.loop_check); });
 }
 
 }  // namespace dcl::apps

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -109,6 +110,41 @@ double counter(const std::map<std::string, double>& counters, const std::string&
   return it == counters.end() ? 0.0 : it->second;
 }
 
+/// A loop is wrong when its relative pose is more than 1 m or 2 deg off the
+/// ground truth's (bench loops' grading).
+constexpr double kWrongLoopM = 1.0;
+constexpr double kWrongLoopDeg = 2.0;
+
+/// The ground truth of keyframe `key` at its stamp; none when the truth does not cover it.
+std::optional<Eigen::Isometry3d> truthAt(const swarm::SwarmResult& result,
+                                         const std::vector<core::Trajectory>& truths,
+                                         const core::PoseKey& key) {
+  const std::size_t r = key.robot.value();
+  if (r >= truths.size() || truths[r].empty()) return std::nullopt;
+  const std::vector<core::Keyframe>& keyframes = result.robots[r].keyframes;
+  if (key.keyframe.value() >= keyframes.size()) return std::nullopt;
+  return truths[r].at(keyframes[key.keyframe.value()].stamp);
+}
+
+/// The accepted inter-robot loops robot `r` is the lower robot of that the
+/// ground truth says are wrong; none when a robot has no ground truth.
+std::optional<std::size_t> wrongAcceptedLoops(const swarm::SwarmResult& result,
+                                              const std::vector<core::Trajectory>& truths,
+                                              std::size_t r) {
+  std::size_t wrong = 0;
+  for (const robot::InterLoop& loop : result.robots[r].inter_loops) {
+    const backend::Factor& f = loop.factor;
+    if (!loop.accepted || std::min(f.from.robot, f.to.robot).value() != r) continue;
+    const auto from = truthAt(result, truths, f.from);
+    const auto to = truthAt(result, truths, f.to);
+    if (!from || !to) return std::nullopt;
+    const Eigen::Isometry3d error = f.T_from_to.inverse() * from->inverse() * *to;
+    wrong += error.translation().norm() > kWrongLoopM ||
+             core::rad2deg(core::rotationAngle(error.rotation())) > kWrongLoopDeg;
+  }
+  return wrong;
+}
+
 eval::RunSummary summaryOf(const io::DatasetSpec& spec, const swarm::SwarmResult& result,
                            const std::vector<core::Trajectory>& truths, double interval) {
   eval::RunSummary s;
@@ -132,6 +168,7 @@ eval::RunSummary summaryOf(const io::DatasetSpec& spec, const swarm::SwarmResult
         static_cast<std::size_t>(counter(m.counters, "inter_loops_accepted"));
     run.inter_loops_rejected =
         static_cast<std::size_t>(counter(m.counters, "inter_loops_rejected"));
+    run.inter_loops_accepted_wrong = wrongAcceptedLoops(result, truths, r);
     run.bytes_sent = m.traffic.sent;
     run.bytes_received = m.traffic.received;
     for (const auto& [kind, series] : m.sent_over_time)
@@ -274,6 +311,14 @@ void printRunTable(const Json& m, const std::string& out) {
         static_cast<double>(r["bytes_sent"].get<std::size_t>()) / 1000.0);
   }
   printFrames(m);
+  std::size_t wrong = 0;
+  bool graded = false;
+  for (const Json& r : m["robots"]) {
+    if (r["inter_loops_accepted_wrong"].is_null()) continue;
+    graded = true;
+    wrong += r["inter_loops_accepted_wrong"].get<std::size_t>();
+  }
+  if (graded) fmt::print("inter-robot loops kept that the ground truth calls wrong: {}\n", wrong);
   for (const Json& r : m["robots"]) {
     if (r.contains("left_at_s") && !r["left_at_s"].is_null())
       fmt::print("{} left the swarm at {} s: its outputs are what it held then\n",

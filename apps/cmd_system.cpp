@@ -162,7 +162,11 @@ std::string boundTables(const std::vector<const DatasetRun*>& runs) {
 /// The run's per-dataset summary: averages over its robots.
 Json summaryOf(const DatasetRun& run) {
   std::vector<double> gain, ate, transmit, receive;
+  std::size_t kept_ends = 0, wrong = 0;
   for (const Json& r : run.metrics["robots"]) {
+    kept_ends += r["inter_loops_accepted"].get<std::size_t>();
+    if (const auto w = number(r["inter_loops_accepted_wrong"]))
+      wrong += static_cast<std::size_t>(*w);
     if (const auto g = improvement(r, "ate_rmse", "ate_rmse_odometry_only")) gain.push_back(*g);
     if (const auto a = number(r["ate_rmse"])) ate.push_back(*a);
     transmit.push_back(r["transmit_kBps"].get<double>());
@@ -177,7 +181,9 @@ Json summaryOf(const DatasetRun& run) {
           {"ate_rmse_mean", mean(ate)},
           {"ate_improvement_mean", mean(gain)},
           {"transmit_kBps_mean", mean(transmit)},
-          {"receive_kBps_mean", mean(receive)}};
+          {"receive_kBps_mean", mean(receive)},
+          {"inter_loops_kept", kept_ends / 2},  // each loop is held by both its robots
+          {"inter_loops_kept_wrong", wrong}};
 }
 
 bool isKitti(const std::string& name) {
@@ -193,18 +199,23 @@ std::string seedsTable(const std::vector<const DatasetRun*>& runs) {
          "routes' noise and its LiDAR units): mean ATE lowered against the odometry per seed, "
          "their mean, and the robots not below their odometry\n\n"
          "| preset | seeds | system, per seed | system, mean | robots not below | joint optimum, "
-         "mean | robots not below at the optimum |\n|---|---|---|---|---|---|---|\n";
+         "mean | robots not below at the optimum | inter-robot loops kept (wrong) |\n"
+         "|---|---|---|---|---|---|---|---|\n";
   std::vector<std::string> presets;
   for (const DatasetRun* run : runs) {
     if (std::find(presets.begin(), presets.end(), run->preset) == presets.end())
       presets.push_back(run->preset);
   }
+  std::size_t total_runs = 0, total_robots = 0, total_above = 0, total_kept = 0, total_wrong = 0;
   for (const std::string& preset : presets) {
     std::vector<double> system, optimum;
     std::string per_seed;
-    std::size_t robots = 0, above = 0, above_optimum = 0;
+    std::size_t robots = 0, above = 0, above_optimum = 0, kept = 0, wrong = 0;
     for (const DatasetRun* run : runs) {
       if (run->preset != preset) continue;
+      const Json s = summaryOf(*run);
+      kept += s["inter_loops_kept"].get<std::size_t>();
+      wrong += s["inter_loops_kept_wrong"].get<std::size_t>();
       const auto& b = run->bound;
       system.push_back(meanLowered(b, &RobotBound::run, &RobotBound::odometry));
       optimum.push_back(meanLowered(b, &RobotBound::optimum, &RobotBound::odometry));
@@ -213,10 +224,19 @@ std::string seedsTable(const std::vector<const DatasetRun*>& runs) {
       above += notBelow(b, &RobotBound::run, &RobotBound::odometry);
       above_optimum += notBelow(b, &RobotBound::optimum, &RobotBound::odometry);
     }
-    out << fmt::format("| `{}` | {} | {} | {} | {} of {} | {} | {} of {} |\n", preset,
+    out << fmt::format("| `{}` | {} | {} | {} | {} of {} | {} | {} of {} | {} ({}) |\n", preset,
                        system.size(), per_seed, percent(mean(system)), above, robots,
-                       percent(mean(optimum)), above_optimum, robots);
+                       percent(mean(optimum)), above_optimum, robots, kept, wrong);
+    total_runs += system.size();
+    total_robots += robots;
+    total_above += above;
+    total_kept += kept;
+    total_wrong += wrong;
   }
+  out << fmt::format(
+      "\n{} runs: {} of {} robots not below their odometry; {} inter-robot loops kept, {} of "
+      "them wrong\n",
+      total_runs, total_above, total_robots, total_kept, total_wrong);
   return out.str();
 }
 

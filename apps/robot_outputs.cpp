@@ -221,7 +221,10 @@ nlohmann::ordered_json robotMetricsJson(const eval::RobotRun& run, const eval::R
           {"receive_kBps", m.receive_kBps},
           {"intra_loops", run.intra_loops},
           {"inter_loops_accepted", run.inter_loops_accepted},
-          {"inter_loops_rejected", run.inter_loops_rejected}};
+          {"inter_loops_rejected", run.inter_loops_rejected},
+          {"inter_loops_accepted_wrong",
+           run.inter_loops_accepted_wrong ? nlohmann::ordered_json(*run.inter_loops_accepted_wrong)
+                                          : nlohmann::ordered_json(nullptr)}};
 }
 
 }  // namespace dcl::apps

@@ -56,19 +56,25 @@ std::vector<comm::Body> bodies(const std::vector<std::uint8_t>& descriptor,
   step.translation() = Eigen::Vector3d(2e-5, -1e-6, 3e-6);
   comm::PoseEstimates increments{refine, {{KeyframeId(5), step}, {KeyframeId(6), T}}, false, true};
   comm::RotationEstimates rotations{state, {{KeyframeId(5), T.rotation()}}};
-  return {comm::Heartbeat{2.5, 40, {{RobotId(0), 1, 12, 3}}},
-          comm::DescriptorMessage{KeyframeId(4), 3.0, descriptor,
-                                  comm::OdometryStep{KeyframeId(3), T, loop.covariance}},
-          comm::LoopCandidate{KeyframeId(4), KeyframeId(90), 1.2F, 0.18F, cloud},
-          loop,
-          comm::LoopMeasurement{KeyframeId(4), KeyframeId(91), comm::LoopStatus::degenerate},
-          state,
-          rotations,
-          poses,
-          increments,
-          comm::SummaryRequest{comm::SummaryKind::map},
-          comm::TrajectorySummary{poses.poses},
-          comm::MapSummary{12, cloud}};
+  return {
+      comm::Heartbeat{2.5, 40, {{RobotId(0), 1, 12, 3}}},
+      comm::DescriptorMessage{KeyframeId(4), 3.0, descriptor,
+                              comm::OdometryStep{KeyframeId(3), T, loop.covariance}, 0.27F},
+      comm::LoopCandidate{KeyframeId(4), KeyframeId(90), 1.2F, 0.18F, cloud},
+      loop,
+      comm::LoopMeasurement{KeyframeId(4), KeyframeId(91), comm::LoopStatus::degenerate},
+      [] {
+        comm::LoopMeasurement notice{KeyframeId(4), KeyframeId(91), comm::LoopStatus::unexplained};
+        notice.round = 1026;
+        return notice;
+      }(),
+      state,
+      rotations,
+      poses,
+      increments,
+      comm::SummaryRequest{comm::SummaryKind::map},
+      comm::TrajectorySummary{poses.poses},
+      comm::MapSummary{12, cloud}};
 }
 
 }  // namespace

@@ -124,7 +124,15 @@ bool PairwiseConsistency::addLoop(const Factor& loop) {
   index_.emplace(id, candidates_.size() - 1);
   decided_ = false;
   syncTrajectories();
-  if (reachable(candidates_.back().loop)) check(candidates_.size() - 1);
+  if (!withdrawn_.contains(id) && reachable(candidates_.back().loop)) check(candidates_.size() - 1);
+  return true;
+}
+
+bool PairwiseConsistency::withdraw(const LoopId& id) {
+  if (!withdrawn_.insert(id).second) return false;
+  const auto it = index_.find(id);
+  if (it != index_.end() && candidates_[it->second].vertex) resetChecks();
+  decided_ = false;
   return true;
 }
 
@@ -220,7 +228,8 @@ const PcmDecision& PairwiseConsistency::decide() {
   if (decided_) return decision_;
   syncTrajectories();
   for (std::size_t i = 0; i < candidates_.size(); ++i) {
-    if (!candidates_[i].vertex && reachable(candidates_[i].loop)) check(i);
+    const Candidate& c = candidates_[i];
+    if (!c.vertex && !withdrawn_.contains(loopId(c.loop)) && reachable(c.loop)) check(i);
   }
   if (cliqueUnchanged()) {
     accepted_.resize(graph_.size(), false);
@@ -230,16 +239,19 @@ const PcmDecision& PairwiseConsistency::decide() {
   decision_.accepted.clear();
   decision_.rejected.clear();
   decision_.unverified.clear();
+  decision_.withdrawn.clear();
   for (const auto& [id, index] : index_) {
     const Candidate& c = candidates_[index];
-    if (!c.vertex) {
+    if (withdrawn_.contains(id)) {
+      decision_.withdrawn.push_back(c.loop);
+    } else if (!c.vertex) {
       decision_.unverified.push_back(c.loop);
     } else {
       (accepted_[*c.vertex] ? decision_.accepted : decision_.rejected).push_back(c.loop);
     }
   }
-  decision_.too_short = !decision_.accepted.empty() && !spansEnough(decision_.accepted);
-  if (decision_.too_short) {
+  decision_.too_few = !decision_.accepted.empty() && decision_.accepted.size() < config_.min_loops;
+  if (decision_.too_few) {
     decision_.unverified.insert(decision_.unverified.end(), decision_.accepted.begin(),
                                 decision_.accepted.end());
     decision_.accepted.clear();
@@ -247,33 +259,6 @@ const PcmDecision& PairwiseConsistency::decide() {
   decision_.consistent_pairs = edges_;
   decided_ = true;
   return decision_;
-}
-
-namespace {
-
-/// The straight-line extent of `keyframes` on a trajectory: the farthest from
-/// the farthest from the first (two sweeps; exact on a line, within a factor
-/// of two of the diameter anywhere).
-double extent(const TrajectoryTree& tree, const std::vector<core::KeyframeId>& keyframes) {
-  const auto farthest = [&](core::KeyframeId from) {
-    std::pair<double, core::KeyframeId> best{0.0, from};
-    for (const core::KeyframeId k : keyframes)
-      best = std::max(best, {tree.relative(from, k).T_i_j.translation().norm(), k});
-    return best;
-  };
-  return farthest(farthest(keyframes.front()).second).first;
-}
-
-}  // namespace
-
-bool PairwiseConsistency::spansEnough(const std::vector<Factor>& loops) const {
-  if (config_.min_span <= 0.0) return true;
-  std::vector<core::KeyframeId> a, b;
-  for (const Factor& f : loops) {
-    a.push_back(f.from.keyframe);
-    b.push_back(f.to.keyframe);
-  }
-  return extent(robot_a_, a) >= config_.min_span && extent(robot_b_, b) >= config_.min_span;
 }
 
 std::vector<Factor> PairwiseConsistency::loops() const {
@@ -289,7 +274,8 @@ std::vector<Factor> PairwiseConsistency::loops() const {
 std::size_t PcmResult::loops() const {
   std::size_t n = 0;
   for (const auto& p : pairs) {
-    n += p.decision.accepted.size() + p.decision.rejected.size() + p.decision.unverified.size();
+    n += p.decision.accepted.size() + p.decision.rejected.size() + p.decision.unverified.size() +
+         p.decision.withdrawn.size();
   }
   return n;
 }

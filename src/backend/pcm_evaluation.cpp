@@ -228,7 +228,7 @@ LoopScore scoreLoops(const PcmResult& result, const std::set<LoopId>& reference)
   LoopScore s;
   for (const PcmPairResult& pair : result.pairs) {
     const PcmDecision& d = pair.decision;
-    for (const auto* list : {&d.accepted, &d.rejected, &d.unverified}) {
+    for (const auto* list : {&d.accepted, &d.rejected, &d.unverified, &d.withdrawn}) {
       for (const Factor& f : *list) {
         ++s.candidates;
         const bool inlier = reference.contains(loopId(f));

@@ -29,6 +29,7 @@ constexpr double kPreciseQuaternionScale = 2147483647.0 * std::numbers::sqrt2;
 constexpr double kRotationScale = 16384.0;          // relaxed entries within +/-2
 constexpr double kIncrementRotationScale = 1e8;     // 1e-8 rad
 constexpr double kIncrementTranslationScale = 1e6;  // 1e-6 m
+constexpr double kLookAlikeScale = 65534.0;         // a descriptor distance in [0, 1]
 constexpr double kLogSigmaOffset = 32.0;            // sigma within 2^-32 .. 2^32
 constexpr double kLogSigmaScale = 1024.0;
 constexpr double kCorrelationScale = 32767.0;
@@ -290,6 +291,11 @@ void fill(wire::Envelope& e, const DescriptorMessage& m) {
   w.set_keyframe(keyframeOut(m.keyframe));
   w.set_stamp(m.stamp);
   w.set_descriptor(payloadOut(m.descriptor, kMaxDescriptorBytes, "descriptor"));
+  if (m.look_alike) {
+    if (!(*m.look_alike >= 0.0F && *m.look_alike <= 1.0F))
+      throw core::Error("encode: look-alike distance not within [0, 1]");
+    w.set_look_alike(1U + static_cast<std::uint32_t>(std::lround(*m.look_alike * kLookAlikeScale)));
+  }
   if (!m.odometry) return;
   w.set_previous(keyframeOut(m.odometry->previous));
   putPose(*w.mutable_odometry_pose(), m.odometry->T_previous_keyframe);
@@ -310,6 +316,7 @@ void fill(wire::Envelope& e, const LoopMeasurement& m) {
   w.set_query(keyframeOut(m.query));
   w.set_match(keyframeOut(m.match));
   w.set_status(static_cast<std::uint32_t>(m.status));
+  if (m.status == LoopStatus::unexplained) w.set_round(m.round);
   if (m.status != LoopStatus::verified) return;
   putPose(*w.mutable_pose(), m.T_match_query);
   putCovariance(*w.mutable_covariance(), m.covariance);
@@ -415,9 +422,13 @@ Heartbeat bodyIn(const wire::Heartbeat& w) {
 }
 
 DescriptorMessage bodyIn(const wire::Descriptor& w) {
-  DescriptorMessage m{keyframeIn(w.keyframe(), "descriptor"),
-                      finiteIn(w.stamp(), "descriptor stamp"),
-                      payloadIn(w.descriptor(), kMaxDescriptorBytes, "descriptor"), std::nullopt};
+  DescriptorMessage m{
+      keyframeIn(w.keyframe(), "descriptor"), finiteIn(w.stamp(), "descriptor stamp"),
+      payloadIn(w.descriptor(), kMaxDescriptorBytes, "descriptor"), std::nullopt, std::nullopt};
+  check(w.look_alike() <= 1U + static_cast<std::uint32_t>(kLookAlikeScale),
+        "descriptor: look-alike distance beyond 1");
+  if (w.look_alike() > 0U)
+    m.look_alike = static_cast<float>(static_cast<double>(w.look_alike() - 1U) / kLookAlikeScale);
   if (w.odometry_pose().empty() && w.odometry_covariance().empty()) return m;
   check(w.odometry_pose().size() == kPoseRecord, "descriptor: odometry pose record not 19 bytes");
   check(w.odometry_covariance().size() == kCovarianceRecord,
@@ -445,6 +456,9 @@ LoopMeasurement bodyIn(const wire::LoopMeasurement& w) {
   m.match = keyframeIn(w.match(), "loop measurement match");
   check(w.status() < kLoopStatuses, "loop measurement: unknown status");
   m.status = static_cast<LoopStatus>(w.status());
+  check(w.round() == 0 || m.status == LoopStatus::unexplained,
+        "loop measurement: a round on an answer");
+  m.round = w.round();
   if (m.status != LoopStatus::verified) {
     check(w.pose().empty() && w.covariance().empty(), "loop measurement: a refusal with a pose");
     return m;

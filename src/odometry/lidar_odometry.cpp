@@ -47,34 +47,21 @@ OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan
     return skipped(stamp, "too few usable points (" + std::to_string(clean.cloud.size()) + " of " +
                               std::to_string(scan.size()) + ")");
   }
-  // 1. Undo the sweep's motion with the last frame's velocity, to mid-sweep;
-  // 2. two resolutions (KISS-ICP): the map's, and a coarser one to register.
+  // 1. The pose is estimated at mid-sweep (see T_odom_reference_), predicted
+  // there under constant velocity.
   const double t_mid = config_.deskew ? sweepMidTime(clean.cloud) : 0.0;
-  std::vector<Eigen::Vector3d> frame = thinnedFrame(clean.cloud, t_mid);
-  const std::vector<Eigen::Vector3d> source = voxelDownsample(frame, 1.5 * config_.mapVoxelSize());
-  // 3. Constant-velocity prediction of the mid-sweep pose.
   const Eigen::Isometry3d T_predicted = predictReference(stamp + t_mid);
-  // 4. Register against the local map (the first frame starts the map).
-  RegistrationResult registration;
-  bool redeskewed = false;
-  registration.T_target_source = T_predicted;
-  registration.converged = true;
-  if (!map_.empty()) {
-    registration = registerScan(source, map_, T_predicted, frameIcpConfig(threshold_.sigma()));
-    // Until the robot has moved, sigma is only the initial guess, a gate of
-    // metres: wide enough to catch an unknown first motion, but against a map
-    // of one or two sparse sweeps its far pairs pull the pose centimetres off
-    // (mostly in height), and that offset stays. Refine with the narrowest
-    // gate the map's sampling allows, from where the wide pass ended.
-    if (!threshold_.learned() && registration.inliers >= config_.icp.min_inliers) {
-      registration = registerScan(source, map_, registration.T_target_source, frameIcpConfig(0.0));
-    }
-    redeskewed = registerAgainIfMotionChanged(clean.cloud, stamp, t_mid, registration, frame);
-  }
-  // 5. Check: too few correspondences means the pose would be a guess.
+  // 2. Register against the local map (the first frame starts the map): the
+  // sweep deskewed with the last velocity, or with its own motion when that
+  // changed sharply.
+  FrameRegistration frame_registration;
+  frame_registration.registration.T_target_source = T_predicted;
+  frame_registration.registration.converged = true;
+  if (!map_.empty()) frame_registration = registerFrame(clean.cloud, stamp, t_mid, T_predicted);
+  const RegistrationResult& registration = frame_registration.registration;
+  // 3. Check: too few correspondences means the pose would be a guess.
   OdometryResult result = skipped(stamp, droppedNote(clean));
   result.health = healthOf(registration, result.health.problem);
-  result.health.redeskewed = redeskewed;
   if (!map_.empty() && registration.inliers < config_.icp.min_inliers) {
     addProblem(result.health.problem,
                "registration failed: " + std::to_string(registration.inliers) + " correspondences");
@@ -84,12 +71,11 @@ OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan
     addProblem(result.health.problem,
                "degenerate registration (the scene constrains too few directions)");
   }
-  // 6. Update velocity and threshold, then the map.
-  const bool second_sweep = first_sweep_.has_value();
+  // 4. Update velocity and threshold, then the map.
+  result.health.sharp_motion = frame_registration.twist.has_value();
   if (map_.empty() && t_mid != 0.0) first_sweep_ = FirstSweep{clean.cloud, t_mid};
-  commit(stamp, t_mid, registration.T_target_source, T_predicted);
-  // The second sweep, like the first, was deskewed before any velocity was known.
-  if (second_sweep) frame = thinnedFrame(clean.cloud, t_mid);
+  commit(stamp, t_mid, registration, T_predicted, frame_registration.twist);
+  const std::vector<Eigen::Vector3d> frame = thinnedFrame(clean.cloud, t_mid);
   growMap(frame);
   result.health.accepted = true;
   result.T_odom_sensor = T_odom_sensor_;
@@ -157,64 +143,107 @@ core::Matrix6d LidarOdometry::covarianceOf(const RegistrationResult& registratio
   return covariance;
 }
 
-std::vector<Eigen::Vector3d> LidarOdometry::thinnedFrame(
-    const core::PointCloud& cloud, double t_mid,
-    const std::optional<core::Vector6d>& velocity) const {
-  const core::Vector6d v = config_.deskew ? velocity.value_or(velocity_) : core::Vector6d::Zero();
+std::vector<Eigen::Vector3d> LidarOdometry::thinnedFrame(const core::PointCloud& cloud,
+                                                         double t_mid) const {
+  const core::Vector6d v = config_.deskew ? velocity_ : core::Vector6d::Zero();
   return voxelDownsample(deskew(cloud, v, t_mid), 0.5 * config_.mapVoxelSize());
 }
 
-bool LidarOdometry::registerAgainIfMotionChanged(const core::PointCloud& cloud, double stamp,
-                                                 double t_mid, RegistrationResult& registration,
-                                                 std::vector<Eigen::Vector3d>& frame) const {
-  // A sharp change of motion (braking into a turn) leaves the sweep deskewed
-  // with a velocity the sensor no longer had, bent by up to half a sweep of
-  // the difference, and the registration settles on the bent sweep. Deskew
-  // it again with the motion it registered at, and register once more. Not
-  // after a degenerate registration, whose motion along the open direction is
-  // a guess; and the second pass is kept only if the sweep fits better.
-  if (registration.inliers < config_.icp.min_inliers || registration.degenerate) return false;
-  const auto velocity =
-      redeskewVelocity(stamp + t_mid, registration.T_target_source, sweepDuration(cloud));
-  if (!velocity) return false;
-  std::vector<Eigen::Vector3d> refined = thinnedFrame(cloud, t_mid, *velocity);
-  RegistrationResult again =
-      registerScan(voxelDownsample(refined, 1.5 * config_.mapVoxelSize()), map_,
-                   registration.T_target_source, frameIcpConfig(threshold_.sigma()));
-  if (again.inliers < config_.icp.min_inliers || again.degenerate ||
-      again.rmse >= registration.rmse) {
-    return false;
+LidarOdometry::FrameSource LidarOdometry::sourceOf(const core::PointCloud& cloud,
+                                                   double t_mid) const {
+  const std::vector<Eigen::Vector3d> deskewed =
+      deskew(cloud, config_.deskew ? velocity_ : core::Vector6d::Zero(), t_mid);
+  FrameSource source;
+  const bool timed = config_.deskew && sweepDuration(cloud) > 0.0;
+  for (const std::size_t i : voxelDownsampleIndices(deskewed, 1.5 * config_.mapVoxelSize())) {
+    source.deskewed.push_back(deskewed[i]);
+    if (!timed) continue;
+    source.sweep.points.push_back(cloud.points[i].cast<double>());
+    source.sweep.offsets.push_back(static_cast<double>(cloud.time[i]) - t_mid);
   }
-  registration = std::move(again);
-  frame = std::move(refined);
-  return true;
+  return source;
 }
 
-std::optional<core::Vector6d> LidarOdometry::redeskewVelocity(
-    double reference_time, const Eigen::Isometry3d& T_odom_reference, double duration) const {
-  // Not before a velocity is known (the first two sweeps have their own fix-up).
-  if (!config_.deskew || config_.redeskew_error <= 0.0 || duration <= 0.0 ||
-      !last_reference_time_ || first_sweep_ || reference_time <= *last_reference_time_) {
-    return std::nullopt;
+RegistrationResult LidarOdometry::registerRigid(const FrameSource& source,
+                                                const Eigen::Isometry3d& T_predicted) const {
+  RegistrationResult rigid =
+      registerScan(source.deskewed, map_, T_predicted, frameIcpConfig(threshold_.sigma()));
+  // Until the robot has moved, sigma is only the initial guess, a gate of
+  // metres: wide enough to catch an unknown first motion, but against a map
+  // of one or two sparse sweeps its far pairs pull the pose centimetres off
+  // (mostly in height), and that offset stays. Refine with the narrowest
+  // gate the map's sampling allows, from where the wide pass ended.
+  if (!threshold_.learned() && rigid.inliers >= config_.icp.min_inliers)
+    rigid = registerScan(source.deskewed, map_, rigid.T_target_source, frameIcpConfig(0.0));
+  return rigid;
+}
+
+LidarOdometry::FrameRegistration LidarOdometry::registerFrame(
+    const core::PointCloud& cloud, double stamp, double t_mid,
+    const Eigen::Isometry3d& T_predicted) const {
+  const FrameSource source = sourceOf(cloud, t_mid);
+  FrameRegistration frame{registerRigid(source, T_predicted), std::nullopt};
+  if (!motionChanged(frame.registration, stamp + t_mid, sweepDuration(cloud)) ||
+      source.sweep.points.empty()) {
+    return frame;
   }
-  const core::Vector6d registered = core::logSE3(T_odom_reference_.inverse() * T_odom_reference) /
-                                    (reference_time - *last_reference_time_);
+  // The sweep was deskewed with a velocity the sensor no longer had, bent
+  // by up to half a sweep of the difference: estimate its own twist with
+  // its pose, from where the rigid fit ended; kept only if it fits better.
+  SweepMotionPrior prior;
+  prior.velocity = velocity_;
+  prior.sigma << Eigen::Vector3d::Constant(config_.twist_sigma_linear),
+      Eigen::Vector3d::Constant(config_.twist_sigma_angular);
+  const SweepRegistration sweep =
+      registerSweep(source.sweep, map_, frame.registration.T_target_source, prior,
+                    frameIcpConfig(threshold_.sigma()));
+  if (sweep.registration.inliers < config_.icp.min_inliers || sweep.registration.degenerate ||
+      sweep.registration.rmse >= frame.registration.rmse) {
+    return frame;
+  }
+  return {sweep.registration, sweep.velocity};
+}
+
+bool LidarOdometry::motionChanged(const RegistrationResult& rigid, double reference_time,
+                                  double duration) const {
+  // Not before a velocity is known (the first two sweeps have their own fix-up).
+  if (!config_.deskew || duration <= 0.0 || !last_reference_time_ || first_sweep_ ||
+      reference_time <= *last_reference_time_ || rigid.inliers < config_.icp.min_inliers ||
+      rigid.degenerate) {
+    return false;
+  }
+  // A sweep bent by a change of motion fits the map far worse than the
+  // sweeps before it, even where the registration stays near the prediction.
+  const double ratio = config_.motion_change_rmse_ratio;
+  if (ratio > 0.0 && rmse_average_ > 0.0 && rigid.rmse > ratio * rmse_average_) return true;
+  if (config_.motion_change_error <= 0.0) return false;
+  const core::Vector6d registered =
+      core::logSE3(T_odom_reference_.inverse() * rigid.T_target_source) /
+      (reference_time - *last_reference_time_);
   const core::Vector6d change = registered - velocity_;
   constexpr double kLever = 10.0;  // m, the point whose displacement is judged
   const double error =
       0.5 * duration * (change.head<3>().norm() + kLever * change.tail<3>().norm());
-  if (error <= config_.redeskew_error) return std::nullopt;
-  return registered;
+  return error > config_.motion_change_error;
 }
 
-void LidarOdometry::commit(double stamp, double t_mid, const Eigen::Isometry3d& T_odom_reference,
-                           const Eigen::Isometry3d& T_predicted) {
+void LidarOdometry::commit(double stamp, double t_mid, const RegistrationResult& registration,
+                           const Eigen::Isometry3d& T_predicted,
+                           const std::optional<core::Vector6d>& twist) {
   const double reference_time = stamp + t_mid;
+  const Eigen::Isometry3d& T_odom_reference = registration.T_target_source;
   const Eigen::Isometry3d T_last_current = T_odom_reference_.inverse() * T_odom_reference;
   if (last_reference_time_) {
-    velocity_ = core::logSE3(T_last_current) / (reference_time - *last_reference_time_);
+    velocity_ =
+        twist.value_or(core::logSE3(T_last_current) / (reference_time - *last_reference_time_));
     threshold_.update(T_predicted.inverse() * T_odom_reference,
                       T_last_current.translation().norm());
+  }
+  if (registration.inliers > 0) {
+    constexpr double kWeight = 0.1;  // about the last ten frames
+    rmse_average_ = rmse_average_ > 0.0
+                        ? (1.0 - kWeight) * rmse_average_ + kWeight * registration.rmse
+                        : registration.rmse;
   }
   T_odom_reference_ = T_odom_reference;
   if (first_sweep_ && last_reference_time_) redoFirstSweep();

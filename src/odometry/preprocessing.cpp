@@ -44,6 +44,18 @@ std::optional<std::pair<double, double>> sweepSpan(const core::PointCloud& cloud
 
 }  // namespace
 
+SweepMotion::SweepMotion(const core::Vector6d& velocity, double t_min, double t_max,
+                         std::size_t bins)
+    : poses_(sweepPoses(velocity, t_min, t_max, std::max<std::size_t>(bins, 1))),
+      t_min_(t_min),
+      scale_(t_max > t_min ? static_cast<double>(poses_.size() - 1) / (t_max - t_min) : 0.0) {}
+
+const Eigen::Isometry3d& SweepMotion::at(double t) const {
+  const double bin =
+      std::clamp(std::round((t - t_min_) * scale_), 0.0, static_cast<double>(poses_.size() - 1));
+  return poses_[static_cast<std::size_t>(bin)];
+}
+
 CleanScan cleanScan(const core::PointCloud& scan, double min_range, double max_range) {
   CleanScan result;
   const bool has_time = scan.time.size() == scan.size() && !scan.empty();
@@ -81,17 +93,11 @@ core::PointCloud toCloud(std::span<const Eigen::Vector3d> points) {
 std::vector<Eigen::Vector3d> deskew(const core::PointCloud& cloud, const core::Vector6d& velocity,
                                     double reference_time) {
   std::vector<Eigen::Vector3d> points = toPoints(cloud);
-  if (cloud.time.size() != cloud.size() || cloud.empty()) return points;
-  const auto [t_min, t_max] = std::minmax_element(cloud.time.begin(), cloud.time.end());
-  constexpr std::size_t kBins = 1024;
-  const std::vector<Eigen::Isometry3d> poses =
-      sweepPoses(velocity, *t_min - reference_time, *t_max - reference_time, kBins);
-  const double span = std::max(static_cast<double>(*t_max - *t_min), 1e-12);
-  for (std::size_t i = 0; i < points.size(); ++i) {
-    const double alpha = (cloud.time[i] - *t_min) / span;
-    const auto bin = static_cast<std::size_t>(std::lround(alpha * (kBins - 1)));
-    points[i] = poses[std::min(bin, kBins - 1)] * points[i];
-  }
+  const auto span = sweepSpan(cloud);
+  if (!span) return points;
+  const SweepMotion motion(velocity, span->first - reference_time, span->second - reference_time);
+  for (std::size_t i = 0; i < points.size(); ++i)
+    points[i] = motion.at(cloud.time[i] - reference_time) * points[i];
   return points;
 }
 
@@ -105,15 +111,21 @@ double sweepDuration(const core::PointCloud& cloud) {
   return span ? span->second - span->first : 0.0;
 }
 
-std::vector<Eigen::Vector3d> voxelDownsample(std::span<const Eigen::Vector3d> points,
-                                             double voxel_size) {
+std::vector<std::size_t> voxelDownsampleIndices(std::span<const Eigen::Vector3d> points,
+                                                double voxel_size) {
   std::unordered_set<Voxel, VoxelHash> occupied;
   occupied.reserve(points.size());
-  std::vector<Eigen::Vector3d> kept;
-  kept.reserve(points.size());
-  for (const Eigen::Vector3d& p : points) {
-    if (occupied.insert(voxelOf(p, voxel_size)).second) kept.push_back(p);
+  std::vector<std::size_t> kept;
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    if (occupied.insert(voxelOf(points[i], voxel_size)).second) kept.push_back(i);
   }
+  return kept;
+}
+
+std::vector<Eigen::Vector3d> voxelDownsample(std::span<const Eigen::Vector3d> points,
+                                             double voxel_size) {
+  std::vector<Eigen::Vector3d> kept;
+  for (const std::size_t i : voxelDownsampleIndices(points, voxel_size)) kept.push_back(points[i]);
   return kept;
 }
 

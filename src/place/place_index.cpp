@@ -96,4 +96,30 @@ DistinctMatch PlaceIndex::queryDistinct(const PlaceDescriptor& query,
   return out;
 }
 
+DistinctMatch PlaceIndex::queryDistinct(const PlaceDescriptor& query,
+                                        const KeyframePosition& position,
+                                        std::optional<float> look_alike) const {
+  DistinctMatch out = queryDistinct(query, position, QueryScope::kOtherRobot);
+  if (!out.best || !look_alike || config_.distinct_ratio >= 1.0) return out;
+  if (out.best->match.distance >= config_.distinct_ratio * *look_alike) {
+    out.refused = out.best;
+    out.best.reset();
+  }
+  return out;
+}
+
+std::optional<float> PlaceIndex::lookAlikeDistance(const PlaceDescriptor& query,
+                                                   const Eigen::Vector3d& at,
+                                                   const KeyframePosition& position,
+                                                   std::size_t before) const {
+  std::optional<float> closest;
+  for (const auto& [slot, squared] :
+       tree_->nearest(query.key(), config_.candidates, std::min(before, size()))) {
+    if ((position(ids_[slot]) - at).norm() < config_.distinct_separation) continue;
+    const float d = descriptor_->match(query, *descriptions_[slot]).distance;
+    if (!closest || d < *closest) closest = d;
+  }
+  return closest;
+}
+
 }  // namespace dcl::place

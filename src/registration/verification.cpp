@@ -95,6 +95,8 @@ std::string_view toString(RejectReason reason) {
       return "high_fitness";
     case RejectReason::degenerate:
       return "degenerate";
+    case RejectReason::symmetric:
+      return "symmetric";
   }
   return "unknown";
 }
@@ -130,6 +132,8 @@ void validate(const VerificationConfig& config) {
   require(config.min_degeneracy >= 0.0 && config.min_degeneracy < 1.0,
           "min_degeneracy must be in [0, 1)");
   require(config.submap_keyframes >= 0, "submap_keyframes must not be negative");
+  require(config.symmetric_share >= 0.0 && config.symmetric_share <= 1.0,
+          "symmetric_share must be in [0, 1]");
   require(positive(config.fpfh.radius), "fpfh.radius must be positive");
   require(positive(config.ransac.inlier_distance), "ransac.inlier_distance must be positive");
   require(config.ransac.edge_similarity > 0.0 && config.ransac.edge_similarity <= 1.0,
@@ -164,6 +168,15 @@ VerificationResult verifyLoop(const core::PointCloud& query_cloud, double yaw_gu
     }
   }
   result.reason = judge(best, config);
+  if (result.reason == RejectReason::none && config.symmetric_share > 0.0) {
+    // Half a turn about the query's own vertical axis, where it is in the submap.
+    const GicpResult turned = refine(submap, query, best.T_target_source * yawPose(M_PI), config);
+    iterations += turned.iterations;
+    if (judge(turned, config) == RejectReason::none &&
+        turned.inlier_share >= config.symmetric_share * best.inlier_share) {
+      result.reason = RejectReason::symmetric;
+    }
+  }
   result.accepted = result.reason == RejectReason::none;
   result.T_candidate_query = best.T_target_source;
   result.covariance = best.covariance;

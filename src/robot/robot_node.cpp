@@ -8,6 +8,7 @@
 #include <spdlog/spdlog.h>
 
 #include <dcl/backend/centralized_solver.hpp>
+#include <dcl/backend/loop_check.hpp>
 #include <dcl/backend/pcm_trajectory.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/place/descriptor_codec.hpp>
@@ -30,7 +31,9 @@ std::string refusalCounter(comm::LoopStatus status) {
                                            "rejected_high_fitness",
                                            "rejected_degenerate",
                                            "rejected_no_submap",
-                                           "rejected_bad_cloud"};
+                                           "rejected_bad_cloud",
+                                           "unexplained",
+                                           "rejected_symmetric"};
   return kNames[static_cast<std::size_t>(status)];
 }
 
@@ -46,6 +49,16 @@ backend::Factor odometryFactor(core::RobotId robot, core::KeyframeId keyframe,
 }
 
 }  // namespace
+
+core::Matrix6d loopCovariance(const core::Matrix6d& registration, const RobotConfig& config) {
+  core::Matrix6d covariance = registration;
+  covariance.diagonal().head<3>().array() +=
+      config.loop_sigma_translation * config.loop_sigma_translation;
+  const double tilt = std::max(config.loop_sigma_tilt, config.loop_sigma_rotation);
+  covariance.diagonal().tail<3>() += Eigen::Vector3d(
+      tilt * tilt, tilt * tilt, config.loop_sigma_rotation * config.loop_sigma_rotation);
+  return covariance;
+}
 
 void validate(const RobotConfig& config) {
   if (config.descriptor.kind != "iris")
@@ -98,6 +111,11 @@ constexpr double kDgsResend = 0.04;
 /// s a robot waits for a member's DGS step before stepping without it: a few
 /// re-sends, so a step is skipped only when its messages are lost again and again.
 constexpr double kDgsPatience = 0.2;
+/// DGS steps a robot takes in a round without solving its block (no own
+/// anchor and no value of a neighbour's separator it holds) before it leaves
+/// the round: the members hold different loops (a loop's measurement lost on
+/// its way to one of them), share no separator, and would step to the cap.
+constexpr int kUngroundedSteps = 20;
 /// A robot stopped while its round refines keeps the last kept step when the
 /// cost fell by at most this share over the last kSettlingSteps kept steps.
 constexpr double kSettlingDecrease = 0.02;
@@ -186,6 +204,10 @@ struct Neighbour {
   std::set<std::pair<core::KeyframeId, core::KeyframeId>> asked;  ///< (own, theirs) candidates sent
   std::map<backend::LoopId, backend::Factor> loops;               ///< verified, by either side
   std::set<backend::LoopId> accepted;                             ///< PCM's current set
+  /// The loops of this pair that a round's solution did not explain, by
+  /// round: as this robot saw them, and as the neighbour gave notice of them.
+  std::map<std::uint32_t, std::set<backend::LoopId>> own_unexplained;
+  std::map<std::uint32_t, std::set<backend::LoopId>> their_unexplained;
 };
 
 struct RobotNode::Impl {
@@ -264,9 +286,11 @@ struct RobotNode::Impl {
     messenger.setKeyframes(static_cast<std::uint32_t>(mapper.keyframes().size()));
     auto description =
         std::make_shared<const place::IrisDescriptor>(place::describeIris(keyframe.cloud, iris));
+    const std::optional<float> look_alike = index.lookAlikeDistance(
+        *description, keyframe.T_odom_keyframe.translation(), ownPosition(), index.size());
     index.add(keyframe.id, description);
     comm::DescriptorMessage m{keyframe.id, keyframe.stamp, place::encodeIris(*description),
-                              std::nullopt};
+                              std::nullopt, look_alike};
     if (keyframe.id.value() > 0) {
       m.odometry = comm::OdometryStep{core::KeyframeId(keyframe.id.value() - 1),
                                       keyframe.T_previous_keyframe, keyframe.covariance};
@@ -281,6 +305,13 @@ struct RobotNode::Impl {
     }
     messenger.send(std::nullopt, std::move(m), now);
     count("descriptors_sent");
+  }
+
+  /// Where the own odometry puts an own keyframe (the place index's positions).
+  [[nodiscard]] place::KeyframePosition ownPosition() const {
+    return [this](core::KeyframeId id) {
+      return Eigen::Vector3d(mapper.keyframes().at(id.value()).T_odom_keyframe.translation());
+    };
   }
 
   /// The odometry factors of the own keyframes so far (for a new PCM pair).
@@ -339,21 +370,24 @@ struct RobotNode::Impl {
       count("descriptors_undecodable");
       return;
     }
-    const place::DistinctMatch found = index.queryDistinct(*theirs, [this](core::KeyframeId id) {
-      return Eigen::Vector3d(mapper.keyframes().at(id.value()).T_odom_keyframe.translation());
-    });
+    const place::DistinctMatch found = index.queryDistinct(*theirs, ownPosition(), d.look_alike);
     if (found.refused) count("candidates_ambiguous");
     const std::optional<place::PlaceCandidate>& best = found.best;
     if (!best) return;
     const core::KeyframeId own = best->keyframe.keyframe;
     if (n.asked.contains({own, d.keyframe})) return;
-    // Loops a few metres apart add little but their clouds and separators.
+    // Loops a few metres apart add little but their clouds and separators,
+    // once the pair holds loops enough to be kept. Until then every match
+    // is asked: robots that meet once, briefly, have only the few agreeing
+    // loops of that one place to merge their maps on.
     const auto near =
         n.asked.lower_bound({core::KeyframeId(own.value() >= config.candidate_spacing
                                                   ? own.value() - config.candidate_spacing + 1
                                                   : 0),
                              core::KeyframeId(0)});
-    if (near != n.asked.end() && near->first.value() < own.value() + config.candidate_spacing)
+    const bool established = n.accepted.size() >= config.pcm.min_loops;
+    if (established && near != n.asked.end() &&
+        near->first.value() < own.value() + config.candidate_spacing)
       return count("candidates_skipped_nearby");
     n.asked.emplace(own, d.keyframe);
     sendCandidate(from, own, d.keyframe, best->match);
@@ -399,14 +433,11 @@ struct RobotNode::Impl {
     const core::PointCloud submap = registration::buildSubmap(mapper.keyframes(), c.match.value(),
                                                               vc.submap_keyframes, vc.voxel_size);
     const registration::VerificationResult v = registration::verifyLoop(query, c.yaw, submap, vc);
-    answer.status = static_cast<comm::LoopStatus>(v.reason);  // the same order, none = verified
+    answer.status = v.reason == registration::RejectReason::symmetric
+                        ? comm::LoopStatus::symmetric
+                        : static_cast<comm::LoopStatus>(v.reason);  // the same order to degenerate
     answer.T_match_query = v.T_candidate_query;
-    answer.covariance = v.covariance;
-    answer.covariance.diagonal().head<3>().array() +=
-        config.loop_sigma_translation * config.loop_sigma_translation;
-    const double tilt = std::max(config.loop_sigma_tilt, config.loop_sigma_rotation);
-    answer.covariance.diagonal().tail<3>() += Eigen::Vector3d(
-        tilt * tilt, tilt * tilt, config.loop_sigma_rotation * config.loop_sigma_rotation);
+    answer.covariance = loopCovariance(v.covariance, config);
     return answer;
   }
 
@@ -424,6 +455,7 @@ struct RobotNode::Impl {
 
   /// Stage 3 received: the neighbour verified one of the own candidates.
   void onMeasurement(core::RobotId from, const comm::LoopMeasurement& m) {
+    if (m.status == comm::LoopStatus::unexplained) return onUnexplained(from, m);
     count(m.status == comm::LoopStatus::verified ? "measurements_verified"
                                                  : "measurements_refused");
     if (m.status != comm::LoopStatus::verified) return;
@@ -538,6 +570,19 @@ struct RobotNode::Impl {
     return members;
   }
 
+  /// True when the loops of `current` number half as many again as those of
+  /// the last round's signature (none: false).
+  [[nodiscard]] bool grewByHalf(
+      const std::vector<std::pair<core::RobotId, std::uint32_t>>& current) const {
+    const auto total = [](const auto& signature) {
+      std::uint64_t sum = 0;
+      for (const auto& [robot, loops] : signature) sum += loops;
+      return sum;
+    };
+    const std::uint64_t last = total(last_signature);
+    return last > 0 && 2 * total(current) >= 3 * last;
+  }
+
   [[nodiscard]] std::vector<std::pair<core::RobotId, std::uint32_t>> signature(
       const std::set<core::RobotId>& members) const {
     std::vector<std::pair<core::RobotId, std::uint32_t>> out;
@@ -548,13 +593,19 @@ struct RobotNode::Impl {
     return out;
   }
 
-  /// The lowest robot of a group starts a round when the group's loops changed.
+  /// The lowest robot of a group starts a round when the group's loops
+  /// changed, an optimise_period after the last; an announce_period after it
+  /// when the loops the group holds grew by half since: a pair's first round
+  /// is made on the few loops PCM needs, and robots that meet briefly part
+  /// soon, so it is redone while they are still in range.
   void maybeStartRound() {
-    if (round || now - last_round_start < config.optimise_period) return;
+    if (round || now - last_round_start < config.announce_period) return;
     const std::set<core::RobotId> members = group();
     if (members.size() < 2 || *members.begin() != self) return;
+    const auto current = signature(members);
+    if (now - last_round_start < config.optimise_period && !grewByHalf(current)) return;
     // Same loops: nothing to do, unless the last round ran out of steps.
-    const bool again = signature(members) == last_signature;
+    const bool again = current == last_signature;
     if (again && !(last_round_capped && frame)) return;
     join(((++rounds_started) << 8U) | self.value(), members, {frame, again});
   }
@@ -689,6 +740,8 @@ struct RobotNode::Impl {
       if (!membersInStep()) return;
       round->agent.iterate();
       round->progressed = now;
+      if (!round->agent.initialised() && round->agent.iteration() >= kUngroundedSteps)
+        return leave("dgs_rounds_left_ungrounded", true);
       for (const backend::DgsMessage& m : round->agent.outgoing()) sendDgs(m);
       round->dgs_last_sent = now;
       if (round->agent.stage() != backend::DgsStage::done) return;
@@ -771,6 +824,90 @@ struct RobotNode::Impl {
                               kSettlingDecrease * costs->back();
     if (!settling) return leave("rounds_left_unsettled_at_stop");
     endRefinementEarly("rounds_ended_by_stop");
+  }
+
+  // ---- the second line of defence -----------------------------------------
+
+  /// After a round whose refinement ran its course (every member reaches
+  /// that end alike), the loops to its members its solution cannot explain
+  /// (backend/loop_check.hpp), at the own final poses and the members'
+  /// separators as they were last sent. Of the robot pair this robot sees
+  /// explained worst, when it is one of the two, the loops beyond the
+  /// threshold go to the partner as notices for this round. A pair's loops
+  /// are withdrawn when both of its robots saw it as their worst in the same
+  /// round (withdrawIfBothSaw). The round's solution weighs the odometry as
+  /// its covariance says, so a wrong cluster that long odometry chains can
+  /// bend to hides from this check; it catches the clusters that leave their
+  /// error on the loops (a robot's chain too short or too stiff to bend).
+  /// The stronger check, which holds the chains stiff and needs the whole
+  /// group's graph, runs offline (`pcm --check-loops`, `bench loops`).
+  void checkRoundLoops(const PoseMap& own, const PoseMap& members) {
+    if (!config.loop_check.enabled) return;
+    std::vector<backend::Factor> loops;
+    for (const backend::Factor& f : round->graph.factors()) {
+      const core::RobotId other = f.from.robot == self ? f.to.robot : f.from.robot;
+      if (f.from.robot != f.to.robot && round->group.contains(other)) loops.push_back(f);
+    }
+    const auto lookup = [&](const core::PoseKey& key) -> std::optional<Eigen::Isometry3d> {
+      const PoseMap& in = key.robot == self ? own : members;
+      const auto it = in.find(key);
+      return it == in.end() ? std::nullopt : std::optional(it->second);
+    };
+    const std::optional<backend::Unexplained> worst =
+        backend::worstUnexplained(backend::loopResiduals(loops, lookup), config.loop_check);
+    if (!worst) return;
+    const auto [a, b] = worst->robots;
+    if (a != self && b != self) return;
+    const core::RobotId partner = a == self ? b : a;
+    for (const backend::LoopId& id : worst->loops) {
+      const bool mine_first = id.first.robot == self;
+      comm::LoopMeasurement notice{mine_first ? id.second.keyframe : id.first.keyframe,
+                                   mine_first ? id.first.keyframe : id.second.keyframe,
+                                   comm::LoopStatus::unexplained};
+      notice.round = round->number;
+      messenger.send(partner, notice, now);
+    }
+    count("inter_loops_unexplained", static_cast<double>(worst->loops.size()));
+    Neighbour& n = neighbour(partner);
+    n.own_unexplained[round->number] = {worst->loops.begin(), worst->loops.end()};
+    withdrawIfBothSaw(partner, n, round->number);
+  }
+
+  /// A notice from `from`: the solution of `m.round` does not explain loop
+  /// (m.match of theirs, m.query of this robot's).
+  void onUnexplained(core::RobotId from, const comm::LoopMeasurement& m) {
+    count("unexplained_notices_received");
+    Neighbour& n = neighbour(from);
+    const core::PoseKey theirs{from, m.match};
+    const core::PoseKey mine{self, m.query};
+    n.their_unexplained[m.round].insert(from < self ? backend::LoopId{theirs, mine}
+                                                    : backend::LoopId{mine, theirs});
+    withdrawIfBothSaw(from, n, m.round);
+  }
+
+  /// Withdraws the loops both this robot and `partner` gave notice of for
+  /// `round`, and those either did once both did (so both withdraw the same
+  /// union); forgets notices of rounds long past.
+  void withdrawIfBothSaw(core::RobotId partner, Neighbour& n, std::uint32_t round_number) {
+    const auto own = n.own_unexplained.find(round_number);
+    const auto theirs = n.their_unexplained.find(round_number);
+    if (own != n.own_unexplained.end() && theirs != n.their_unexplained.end()) {
+      std::size_t withdrawn = 0;
+      for (const auto* ids : {&own->second, &theirs->second})
+        for (const backend::LoopId& id : *ids) withdrawn += n.pcm.withdraw(id) ? 1 : 0;
+      if (withdrawn > 0) {
+        count("inter_loops_withdrawn", static_cast<double>(withdrawn));
+        spdlog::debug("robot {}: t {:.1f}: withdraws {} loops to {} (round {})",
+                      core::robotName(self), now, withdrawn, core::robotName(partner),
+                      round_number);
+        decide(n);
+      }
+    }
+    constexpr std::size_t kRoundsKept = 8;
+    while (n.own_unexplained.size() > kRoundsKept)
+      n.own_unexplained.erase(n.own_unexplained.begin());
+    while (n.their_unexplained.size() > kRoundsKept)
+      n.their_unexplained.erase(n.their_unexplained.begin());
   }
 
   void finishRound(const PoseMap& estimates, bool capped = false) {
@@ -1116,6 +1253,7 @@ struct RobotNode::Impl {
         if (r.schedule->rounds() > 0)
           counters["refine_cost_ratio_last"] =
               r.schedule->cost() / r.schedule->roundCosts().front();
+        checkRoundLoops(r.agent.estimates(), r.agent.neighbourValues());
         return finishRound(r.agent.estimates(), !r.schedule->converged());
       }
       nextStep(r);

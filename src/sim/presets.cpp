@@ -88,6 +88,11 @@ const std::vector<Recipe>& recipes() {
        [](const PresetOptions& o, int n) { return aliasingRoutes(n, o.seed); }, false},
       {"demo", "small and fast: 3 robots on ~180 m campus loops with overlaps, VLP-16", "campus",
        "vlp16", kUgvMountHeight, 3, false, demoRoutes},
+      // Two robots that meet once: their streets cross, and nothing else of
+      // their routes is shared. Their maps merge on the few loops there.
+      {"crossing-2", "2 robots on campus streets that cross once and share nothing else, VLP-16",
+       "campus", "vlp16", kUgvMountHeight, 2, true,
+       [](const PresetOptions& o, int) { return crossingRoutes(o.seed); }},
   };
   return all;
 }

@@ -11,6 +11,7 @@
 
 #include <dcl/core/error.hpp>
 #include <dcl/core/ids.hpp>
+#include <dcl/core/se3.hpp>
 #include <dcl/sim/routes.hpp>
 
 namespace dcl::sim {
@@ -500,6 +501,26 @@ std::vector<Route> aliasingRoutes(int robots, std::uint64_t seed,
     const Eigen::Vector2d b(east ? start + config.route_length : start, y);
     RoutePlan plan;
     plan.path.add({a, headingOf(b - a), config.route_length, 0.0});
+    plan.profile =
+        makeProfile(config.route_length, config.speed * rng.uniform(0.9, 1.1), config.acceleration);
+    routes.push_back(makeRoute(std::size_t(i), samplePlan(plan, terrain, config.rate)));
+  }
+  return routes;
+}
+
+std::vector<Route> crossingRoutes(std::uint64_t seed, const CrossingRouteConfig& config) {
+  if (!(config.route_length > 0.0))
+    throw core::Error("crossingRoutes: route_length must be positive");
+  const Terrain terrain = makeTerrain(seed, config.terrain_amplitude, config.terrain_wavelength);
+  std::vector<Route> routes;
+  for (int i = 0; i < 2; ++i) {
+    Rng rng = streamRng(seed, std::uint64_t(i) + 1);
+    const double heading = i == 0 ? 0.0 : M_PI / 2 + core::deg2rad(rng.uniform(-10.0, 10.0));
+    const Eigen::Vector2d along(std::cos(heading), std::sin(heading));
+    const Eigen::Vector2d right(along.y(), -along.x());
+    const Eigen::Vector2d start = -0.5 * config.route_length * along + config.lane_offset * right;
+    RoutePlan plan;
+    plan.path.add({start, heading, config.route_length, 0.0});
     plan.profile =
         makeProfile(config.route_length, config.speed * rng.uniform(0.9, 1.1), config.acceleration);
     routes.push_back(makeRoute(std::size_t(i), samplePlan(plan, terrain, config.rate)));

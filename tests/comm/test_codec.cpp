@@ -71,7 +71,7 @@ const registration::VerificationResult& realVerification() {
 
 TEST(Codec, DescriptorRoundTripsAndDescribesTheSameOnReceipt) {
   const place::IrisDescriptor sent = place::describeIris(test::kittiScan(0));
-  DescriptorMessage m{keyframe(42), 12.5, place::encodeIris(sent), std::nullopt};
+  DescriptorMessage m{keyframe(42), 12.5, place::encodeIris(sent), std::nullopt, 0.2734F};
   m.odometry = OdometryStep{keyframe(41), test::kittiRelative(0, 5), realVerification().covariance};
   std::size_t bytes = 0;
   const DescriptorMessage got = roundTrip(header(1, std::nullopt), m, &bytes);
@@ -88,11 +88,18 @@ TEST(Codec, DescriptorRoundTripsAndDescribesTheSameOnReceipt) {
                 .norm(),
             1e-5);
   EXPECT_NEAR(got.odometry->covariance(0, 0) / m.odometry->covariance(0, 0), 1.0, 1e-3);
+  ASSERT_TRUE(got.look_alike);
+  EXPECT_NEAR(*got.look_alike, 0.2734F, 1e-4F);
   // The envelope and the odometry step (ids, a pose and a covariance record)
   // add under a hundred bytes to the codec's.
   EXPECT_LE(bytes, m.descriptor.size() + 100);
   m.odometry.reset();
-  EXPECT_FALSE(roundTrip(header(1, std::nullopt), m).odometry);
+  m.look_alike.reset();
+  const DescriptorMessage bare = roundTrip(header(1, std::nullopt), m);
+  EXPECT_FALSE(bare.odometry);
+  EXPECT_FALSE(bare.look_alike);
+  m.look_alike = 1.5F;
+  EXPECT_THROW((void)encode({header(1, std::nullopt), m}), core::Error);
 }
 
 TEST(Codec, LoopCandidateCarriesTheCompactCloud) {
@@ -148,6 +155,19 @@ TEST(Codec, ARefusedCandidateAnswersWithItsReasonAlone) {
   const LoopMeasurement got = roundTrip(header(1, 0), m, &bytes);
   EXPECT_EQ(got.status, LoopStatus::low_inlier_share);
   EXPECT_LE(bytes, 24u);
+}
+
+TEST(Codec, AnUnexplainedLoopNoticeCarriesItsRound) {
+  LoopMeasurement m;
+  m.query = keyframe(5);
+  m.match = keyframe(9);
+  m.status = LoopStatus::unexplained;
+  m.round = 1026;
+  const LoopMeasurement got = roundTrip(header(1, 0), m);
+  EXPECT_EQ(got.status, LoopStatus::unexplained);
+  EXPECT_EQ(got.round, 1026u);
+  m.status = LoopStatus::degenerate;  // an answer: no round on the wire
+  EXPECT_EQ(roundTrip(header(1, 0), m).round, 0u);
 }
 
 TEST(Codec, SeparatorPosesAreUnder30BytesEachOnRealTrajectories) {
@@ -349,7 +369,8 @@ TEST(Codec, StateSummariesAndHeartbeatsRoundTrip) {
 }
 
 TEST(Codec, EncodeRefusesWhatCannotGoOnTheWire) {
-  EXPECT_THROW((void)encode({header(0, 1), DescriptorMessage{keyframe(1), 0.0, {}, std::nullopt}}),
+  EXPECT_THROW((void)encode({header(0, 1),
+                             DescriptorMessage{keyframe(1), 0.0, {}, std::nullopt, std::nullopt}}),
                core::Error);
   LoopMeasurement bad;
   bad.T_match_query.translation().x() = std::nan("");
@@ -360,10 +381,12 @@ TEST(Codec, EncodeRefusesWhatCannotGoOnTheWire) {
   Header no_sender = header(0, 1);
   no_sender.sender = core::RobotId();
   EXPECT_THROW((void)encode({no_sender, SummaryRequest{}}), core::Error);
-  EXPECT_THROW((void)encode({header(0, 1),
-                             DescriptorMessage{
-                                 keyframe(std::uint64_t{1} << 57), 0.0, {1, 2, 3}, std::nullopt}}),
-               core::Error);
+  EXPECT_THROW(
+      (void)encode(
+          {header(0, 1),
+           DescriptorMessage{
+               keyframe(std::uint64_t{1} << 57), 0.0, {1, 2, 3}, std::nullopt, std::nullopt}}),
+      core::Error);
 }
 
 // ---------------------------------------------------------------- hostile input
@@ -494,7 +517,7 @@ std::vector<Message> samples() {
   return {
       {header(0, std::nullopt, 1), Heartbeat{1.0, 3, {{robot(1), 1, 2, 0}}}},
       {header(0, std::nullopt, 2),
-       DescriptorMessage{keyframe(3), 4.5, {9, 8, 7, 6, 5}, std::nullopt}},
+       DescriptorMessage{keyframe(3), 4.5, {9, 8, 7, 6, 5}, std::nullopt, std::nullopt}},
       {header(0, 1, 3), LoopCandidate{keyframe(3), keyframe(7), 0.5F, 0.2F, small_cloud}},
       {header(1, 0, 4), loop},
       {header(1, 0, 5), DgsState{2,

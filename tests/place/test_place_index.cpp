@@ -331,6 +331,40 @@ TEST_F(RealIndex, APlaceThatRepeatsElsewhereIsAmbiguous) {
   EXPECT_EQ(found.best->slot, index.query(*kitti_[1])->slot);
 }
 
+TEST_F(RealIndex, AQueryThatRepeatsOnItsOwnRouteIsAmbiguousToo) {
+  // The querying robot has passed KITTI frame 0's place twice, 48 m apart
+  // (a world of identical blocks); the other robot only once. Its index
+  // alone cannot tell, but the query's own look-alike distance, sent with it,
+  // can: the match is not clearly closer than the query's own repeat.
+  PlaceIndex querying(iris_, core::RobotId(1), {});
+  for (std::size_t i = 0; i < simulated_.size(); ++i)
+    querying.add(core::KeyframeId(i), simulated_[i]);
+  querying.add(core::KeyframeId(100), kitti_[0]);
+  const KeyframePosition route = positions({{100, 0.0}, {101, 48.0}});
+  // Keyframe 101 (the repeat, frame 1 of the same place) asks before it is added.
+  const std::optional<float> look_alike =
+      querying.lookAlikeDistance(*kitti_[1], route(core::KeyframeId(101)), route, querying.size());
+  ASSERT_TRUE(look_alike);
+  EXPECT_FLOAT_EQ(*look_alike, iris_->match(*kitti_[1], *kitti_[0]).distance);
+  // A revisit 5 m on is the same place, not a look-alike: only places far
+  // off count, which look less alike.
+  const std::optional<float> revisit = querying.lookAlikeDistance(
+      *kitti_[1], Eigen::Vector3d(5.0, 0.0, 0.0), positions({{100, 0.0}}), querying.size());
+  EXPECT_TRUE(!revisit || *revisit > *look_alike);
+
+  const PlaceIndex other = mixedIndex();  // holds frame 0 once
+  const DistinctMatch plain = other.queryDistinct(*kitti_[1], positions());
+  ASSERT_TRUE(plain.best);
+  const DistinctMatch told = other.queryDistinct(*kitti_[1], positions(), look_alike);
+  EXPECT_FALSE(told.best);
+  ASSERT_TRUE(told.refused);
+  EXPECT_EQ(told.refused->slot, plain.best->slot);
+  // A query whose route holds no look-alike is matched as before.
+  const DistinctMatch alone = other.queryDistinct(*kitti_[1], positions(), std::nullopt);
+  ASSERT_TRUE(alone.best);
+  EXPECT_EQ(alone.best->slot, plain.best->slot);
+}
+
 TEST_F(RealIndex, SimulatedRobotSkipsItsOwnRecentPast) {
   PlaceIndexConfig config;
   config.exclude_recent = 5;

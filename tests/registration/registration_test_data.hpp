@@ -82,7 +82,9 @@ inline void addRectangle(std::vector<Eigen::Vector3f>& points, const Eigen::Vect
 /// A corridor 4 m wide and 3 m high along x, floor and walls only, 60 m long:
 /// nothing fixes a slide along x. When `closed`, it is 20 m long, walls close
 /// it at both ends and two pillars stand inside, which fix every direction.
-inline core::PointCloud corridor(bool closed, double spacing = 0.1) {
+/// When also `symmetric`, the second pillar stands where half a turn about
+/// the vertical axis puts the first: the corridor looks the same both ways.
+inline core::PointCloud corridor(bool closed, double spacing = 0.1, bool symmetric = false) {
   core::PointCloud cloud;
   auto& p = cloud.points;
   const double half = closed ? 10.0 : 30.0;
@@ -94,7 +96,8 @@ inline core::PointCloud corridor(bool closed, double spacing = 0.1) {
     addRectangle(p, {-half, -2.0, -1.5}, {0.0, 4.0, 0.0}, {0.0, 0.0, 3.0}, spacing);
     addRectangle(p, {half, -2.0, -1.5}, {0.0, 4.0, 0.0}, {0.0, 0.0, 3.0}, spacing);
     for (const Eigen::Vector3d& corner :
-         {Eigen::Vector3d(4.0, -0.5, -1.5), Eigen::Vector3d(-5.0, 0.7, -1.5)}) {
+         {Eigen::Vector3d(4.0, -0.5, -1.5),
+          symmetric ? Eigen::Vector3d(-4.6, -0.1, -1.5) : Eigen::Vector3d(-5.0, 0.7, -1.5)}) {
       addRectangle(p, corner, {0.6, 0.0, 0.0}, {0.0, 0.0, 3.0}, spacing);
       addRectangle(p, corner, {0.0, 0.6, 0.0}, {0.0, 0.0, 3.0}, spacing);
       addRectangle(p, corner + Eigen::Vector3d(0.6, 0.0, 0.0), {0.0, 0.6, 0.0}, {0.0, 0.0, 3.0},

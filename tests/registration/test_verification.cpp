@@ -149,6 +149,28 @@ TEST(Verification, FlagsADegenerateCorridorAndAcceptsAClosedOne) {
   }
 }
 
+TEST(Verification, RefusesAPlaceThatLooksTheSameBothWays) {
+  // The closed corridor with its pillars placed symmetrically: the query
+  // aligns as well the right way round as turned half a turn, so which way
+  // the robots faced is chance (as on the aliasing corridor, where robots
+  // driving opposite ways verified loops 180 deg off).
+  const Eigen::Isometry3d truth = core::makePose2d(1.5, 0.2, core::deg2rad(5.0));
+  const core::PointCloud scene = test::corridor(true, 0.1, true);
+  const core::PointCloud query = core::transformed(scene, truth.inverse());
+  const VerificationResult result = verifyLoop(query, yawOf(truth), scene);
+  EXPECT_FALSE(result.accepted);
+  EXPECT_EQ(result.reason, RejectReason::symmetric);
+  EXPECT_EQ(toString(result.reason), "symmetric");
+  VerificationConfig unchecked;
+  unchecked.symmetric_share = 0.0;
+  const VerificationResult accepted = verifyLoop(query, yawOf(truth), scene, unchecked);
+  ASSERT_TRUE(accepted.accepted) << toString(accepted.reason);
+  EXPECT_LT(poseError(accepted.T_candidate_query, truth).translation, 0.02);
+  VerificationConfig bad;
+  bad.symmetric_share = 1.5;
+  EXPECT_THROW(verifyLoop(query, 0.0, scene, bad), core::Error);
+}
+
 TEST(Verification, RefusesTooSparseCloudsAndInvalidSettings) {
   core::PointCloud few;
   for (int i = 0; i < 50; ++i) few.points.emplace_back(static_cast<float>(i), 0.0F, 0.0F);

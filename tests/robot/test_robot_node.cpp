@@ -311,6 +311,18 @@ TEST(RobotNode, RefinementAfterDgsLowersTheCostAndBothRobotsDecideAlike) {
   EXPECT_FALSE(a.contains("refine_cut_short"));
 }
 
+/// A first round with a long refinement, for the stop tests below: it waits
+/// for twelve loops (some metres of both routes to bend into line), and its
+/// refinement steps on until a step no longer lowers the cost. About 36
+/// steps, settling (the cost falling by at most 2 % over ten steps) from
+/// about the 25th, a step every 40 ms.
+RobotConfig longFirstRound() {
+  RobotConfig config;
+  config.pcm.min_loops = 12;
+  config.refine.relative_tolerance = 0.0;
+  return config;
+}
+
 /// Stops the robots `seconds` after both began their first refinement.
 std::function<bool(const SwarmRun&)> refiningFor(double seconds) {
   auto ticks = std::make_shared<int>(0);
@@ -324,12 +336,12 @@ std::function<bool(const SwarmRun&)> refiningFor(double seconds) {
 
 TEST(RobotNode, StoppedMidRefinementTheRobotsKeepASettlingRoundsLastKeptStep) {
   // The robots stop while their first round refines (a run's data and its
-  // time to settle are over). 0.7 s in, about 17 steps, the refinement is
-  // settling (its cost falls by about 1 % over ten steps; it converges
-  // after 27): each keeps the last step the group kept, in the round's
-  // frame, not the separate odometry frames it held before.
+  // time to settle are over). 1.15 s in, about 29 steps, the refinement is
+  // settling: each keeps the last step the group kept, in the round's frame,
+  // not the separate odometry frames it held before.
   const auto never = std::numeric_limits<std::size_t>::max();
-  const SwarmRun run = drive(convoy(), {}, 10.0, {}, never, {}, {}, refiningFor(0.7));
+  const SwarmRun run =
+      drive(convoy(), {}, 10.0, longFirstRound(), never, {}, {}, refiningFor(1.15));
   for (const auto& node : run.nodes) {
     const auto& c = node->counters();
     EXPECT_EQ(c.at("rounds_ended_by_stop"), 1.0) << core::robotName(node->id());
@@ -345,7 +357,8 @@ TEST(RobotNode, StoppedMidRefinementTheRobotsKeepASettlingRoundsLastKeptStep) {
   }
   // Stopped 0.1 s in, two steps from DGS's estimate, the round is left: each
   // robot keeps what it held, in its own frame.
-  const SwarmRun early = drive(convoy(), {}, 10.0, {}, never, {}, {}, refiningFor(0.1));
+  const SwarmRun early =
+      drive(convoy(), {}, 10.0, longFirstRound(), never, {}, {}, refiningFor(0.1));
   for (const auto& node : early.nodes) {
     const auto& c = node->counters();
     EXPECT_EQ(c.at("rounds_left_unsettled_at_stop"), 1.0) << core::robotName(node->id());
@@ -355,18 +368,18 @@ TEST(RobotNode, StoppedMidRefinementTheRobotsKeepASettlingRoundsLastKeptStep) {
 }
 
 TEST(RobotNode, AMemberThatStopsMidRoundTellsTheOthers) {
-  // b stops 0.7 s into the first round's refinement (its process ends) while
+  // b stops 1.15 s into the first round's refinement (its process ends) while
   // a goes on. b's notice that it left the round ends a's refinement at the
   // last step the group kept, as b's own, at once: a does not wait out the
   // round's timeout for steps b will never send. Both end in one frame.
   const auto never = std::numeric_limits<std::size_t>::max();
-  const auto refining = refiningFor(0.7);
+  const auto refining = refiningFor(1.15);
   const auto stop_b = [&](SwarmRun& run) {
     if (run.halted[1] || !refining(run)) return;
     run.nodes[1]->stop();
     run.halted[1] = true;
   };
-  const SwarmRun run = drive(convoy(), {}, 10.0, {}, never, {}, {}, {}, stop_b);
+  const SwarmRun run = drive(convoy(), {}, 10.0, longFirstRound(), never, {}, {}, {}, stop_b);
   ASSERT_TRUE(run.halted[1]);
   const auto& a = run.nodes[0]->counters();
   const auto& b = run.nodes[1]->counters();
@@ -455,6 +468,10 @@ TEST(RobotNode, RobotsThatPartSolveAloneWithTheirOwnLaterLoops) {
       EXPECT_GT(c.contains(name) ? c.at(name) : 0.0, 0.0) << core::robotName(node->id()) << name;
   }
   for (const auto& node : stale.nodes) EXPECT_FALSE(node->counters().contains("solved_alone"));
+  for (const auto& node : solved.nodes) {
+    for (const auto& [k, v] : node->counters()) std::printf("%s=%g ", k.c_str(), v);
+    std::printf("\n");
+  }
   const double with = costOverOptimum(solved);
   const double without = costOverOptimum(stale);
   // Not the optimum: each holds the other where they parted, and the
@@ -604,9 +621,10 @@ TEST(RobotNode, CountsEveryStageOfTheExchange) {
     const auto get = [&c](const char* name) { return c.contains(name) ? c.at(name) : 0.0; };
     candidates_sent += get("candidates_sent");
     candidates_received += get("candidates_received");
-    for (const char* status : {"verified", "rejected_too_few_points", "rejected_not_converged",
-                               "rejected_low_inlier_share", "rejected_high_fitness",
-                               "rejected_degenerate", "rejected_no_submap", "rejected_bad_cloud"})
+    for (const char* status :
+         {"verified", "rejected_too_few_points", "rejected_not_converged",
+          "rejected_low_inlier_share", "rejected_high_fitness", "rejected_degenerate",
+          "rejected_no_submap", "rejected_bad_cloud", "rejected_symmetric"})
       answered += get(status);
     heard_back += get("measurements_verified") + get("measurements_refused");
   }

@@ -22,7 +22,7 @@ bool hasKind(const std::vector<Overlap>& overlaps, OverlapKind kind) {
 
 TEST(Presets, NamesAreListedInOrder) {
   const std::vector<std::string> expected{"kitti00-3", "kitti05-3",  "kitti08-2", "campus-3",
-                                          "campus-9",  "aliasing-3", "demo"};
+                                          "campus-9",  "aliasing-3", "demo",      "crossing-2"};
   EXPECT_EQ(presetNames(), expected);
 }
 
@@ -63,7 +63,8 @@ INSTANTIATE_TEST_SUITE_P(Presets, EveryPreset,
                                            Expected{"campus-3", "campus", "vlp16", 3},
                                            Expected{"campus-9", "campus", "vlp16", 9},
                                            Expected{"aliasing-3", "aliasing", "vlp16", 3},
-                                           Expected{"demo", "campus", "vlp16", 3}),
+                                           Expected{"demo", "campus", "vlp16", 3},
+                                           Expected{"crossing-2", "campus", "vlp16", 2}),
                          [](const ::testing::TestParamInfo<Expected>& info) {
                            std::string name = info.param.name;
                            std::replace(name.begin(), name.end(), '-', '_');

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <ostream>
 #include <string>
 #include <vector>
 
@@ -46,6 +47,10 @@ struct Expected {
   std::vector<std::uint64_t> checksums;  ///< first robot at 0, 1/2, 1; last robot at 1/3
 };
 
+void PrintTo(const Expected& expected, std::ostream* os) {
+  *os << expected.preset;
+}
+
 class ScanChecksums : public ::testing::TestWithParam<Expected> {};
 
 TEST_P(ScanChecksums, MatchTheCommittedValues) {
@@ -74,29 +79,46 @@ TEST_P(ScanChecksums, MatchTheCommittedValues) {
   EXPECT_EQ(computed, expected.checksums) << "computed {" << listed << "}";
 }
 
-INSTANTIATE_TEST_SUITE_P(Presets, ScanChecksums,
-                         ::testing::Values(Expected{"kitti00-3",
-                                                    {0x854abb14f0b34b1eULL, 0x00cb0dfecaf80badULL,
-                                                     0xe3a57e05d0a167a6ULL, 0x1f2f3ed5bd4a3b6cULL}},
-                                           Expected{"kitti05-3",
-                                                    {0xc5d1b182fe2836b7ULL, 0x6cafa375d66a3a9bULL,
-                                                     0x874d33f94de48d1fULL, 0x3ed652fbb10bfbabULL}},
-                                           Expected{"kitti08-2",
-                                                    {0x6c026ae61e25d09aULL, 0x3eaa77acfbbba0ccULL,
-                                                     0xd9f3577aad3237b8ULL, 0x73bc45c520b45af4ULL}},
-                                           Expected{"campus-3",
-                                                    {0x518e70f463c05653ULL, 0x0b53cf4b3cc3d087ULL,
-                                                     0x2abb34825dbeaa93ULL, 0xa7f598298cbd3bfeULL}},
-                                           Expected{"campus-9",
-                                                    {0x3d8f3781e88cfc23ULL, 0x03296e957d476cb4ULL,
-                                                     0x0f08595f15b7d7b2ULL, 0x3dd2ec611c7660c8ULL}},
-                                           Expected{"aliasing-3",
-                                                    {0xc951731e6ff3152aULL, 0x282fb1945f31cb39ULL,
-                                                     0xe0b33d3b0bbe14c8ULL, 0x4b7986c42649a4dcULL}},
-                                           Expected{
-                                               "demo",
-                                               {0x6fda9240de464b67ULL, 0xd14ff1025ec8ee28ULL,
-                                                0x1b5a9e1bb16082ddULL, 0x4867fbb7cc270594ULL}}),
+/// The committed checksums, one entry a preset.
+const std::vector<Expected>& committed() {
+  static const std::vector<Expected> table{
+      Expected{"kitti00-3",
+               {0x854abb14f0b34b1eULL, 0x00cb0dfecaf80badULL, 0xe3a57e05d0a167a6ULL,
+                0x1f2f3ed5bd4a3b6cULL}},
+      Expected{"kitti05-3",
+               {0xc5d1b182fe2836b7ULL, 0x6cafa375d66a3a9bULL, 0x874d33f94de48d1fULL,
+                0x3ed652fbb10bfbabULL}},
+      Expected{"kitti08-2",
+               {0x6c026ae61e25d09aULL, 0x3eaa77acfbbba0ccULL, 0xd9f3577aad3237b8ULL,
+                0x73bc45c520b45af4ULL}},
+      Expected{"campus-3",
+               {0x518e70f463c05653ULL, 0x0b53cf4b3cc3d087ULL, 0x2abb34825dbeaa93ULL,
+                0xa7f598298cbd3bfeULL}},
+      Expected{"campus-9",
+               {0x3d8f3781e88cfc23ULL, 0x03296e957d476cb4ULL, 0x0f08595f15b7d7b2ULL,
+                0x3dd2ec611c7660c8ULL}},
+      Expected{"aliasing-3",
+               {0xc951731e6ff3152aULL, 0x282fb1945f31cb39ULL, 0xe0b33d3b0bbe14c8ULL,
+                0x4b7986c42649a4dcULL}},
+      Expected{"crossing-2",
+               {0xbdc665528ab089ebULL, 0x074a00c2697bf0bdULL, 0x6d7f2128e352bb78ULL,
+                0x9aba1f4b11cd3a48ULL}},
+      Expected{"demo",
+               {0x6fda9240de464b67ULL, 0xd14ff1025ec8ee28ULL, 0x1b5a9e1bb16082ddULL,
+                0x4867fbb7cc270594ULL}}};
+  return table;
+}
+
+TEST(ScanChecksums, EveryPresetHasItsEntry) {
+  std::vector<std::string> listed;
+  for (const Expected& e : committed()) listed.push_back(e.preset);
+  std::vector<std::string> presets = presetNames();
+  std::sort(listed.begin(), listed.end());
+  std::sort(presets.begin(), presets.end());
+  EXPECT_EQ(listed, presets);
+}
+
+INSTANTIATE_TEST_SUITE_P(Presets, ScanChecksums, ::testing::ValuesIn(committed()),
                          [](const ::testing::TestParamInfo<Expected>& info) {
                            std::string name = info.param.preset;
                            std::replace(name.begin(), name.end(), '-', '_');

@@ -33,6 +33,7 @@
 #include <cstdint>
 #include <map>
 #include <optional>
+#include <set>
 #include <utility>
 #include <vector>
 
@@ -57,13 +58,14 @@ struct PcmConfig {
   /// along its odometry chain alone, whose covariance grows with the time
   /// between the two keyframes and lets more wrong loops pass).
   bool intra_loops = true;
-  /// m: the kept set must span at least this much of each robot's trajectory
-  /// (straight-line distance between its farthest keyframes on that robot),
-  /// else it is held back until more loops arrive. A few loops from
-  /// neighbouring keyframes agree with each other whether they are right or
-  /// wrong (a repeated block seen from three consecutive keyframes); agreement
-  /// over a stretch of both trajectories is the evidence. 0: the paper's PCM.
-  double min_span = 10.0;
+  /// The kept set is held back until it holds at least this many loops: a
+  /// lone loop has nothing to be consistent with. Loops from neighbouring
+  /// keyframes agree with each other whether they are right or wrong (a
+  /// repeated block seen from three keyframes); what refutes such a cluster
+  /// is the rest of the group's loops, after the round that solves them
+  /// together (loop_check.hpp). So two robots that met once, at one place,
+  /// merge their maps on a few agreeing loops there. 1: the paper's PCM.
+  std::size_t min_loops = 2;
 
   /// Lists the fields for the YAML loader (io/config.hpp).
   template <class V>
@@ -77,8 +79,9 @@ struct PcmConfig {
             "exact clique search nodes before falling back to the heuristic");
     v.field("intra_loops", intra_loops,
             "compose relative poses through intra-robot loops (false: odometry chain only)");
-    v.field("min_span", min_span,
-            "m, least extent of the kept loops on each robot's trajectory (0: no check)");
+    v.field("min_loops", min_loops,
+            "fewest mutually consistent loops of a robot pair before they are kept (1: none held "
+            "back)");
   }
 };
 
@@ -104,10 +107,11 @@ struct PcmDecision {
   std::vector<Factor> accepted;  ///< the maximum set of pairwise consistent loops
   std::vector<Factor> rejected;  ///< inconsistent with that set
   /// Loops not judged yet, so not accepted: their keyframes are beyond the
-  /// trajectories held, or the consistent set is shorter than min_span.
+  /// trajectories held, or the consistent set has fewer than min_loops.
   std::vector<Factor> unverified;
-  bool too_short = false;  ///< the consistent set was held back: shorter than min_span
-  bool exact = true;       ///< the clique is the exact, canonical one (not the heuristic fallback)
+  std::vector<Factor> withdrawn;  ///< taken out of the judgement (withdraw)
+  bool too_few = false;           ///< the consistent set was held back: fewer than min_loops
+  bool exact = true;  ///< the clique is the exact, canonical one (not the heuristic fallback)
   std::size_t consistent_pairs = 0;  ///< edges of the consistency graph
 };
 
@@ -142,6 +146,12 @@ class PairwiseConsistency {
   /// core::Error for a factor that is not between these two robots.
   bool replaceLoop(const Factor& loop);
 
+  /// Takes the loop `id` out of the judgement for good (the group's solution
+  /// cannot explain it, loop_check.hpp): it is never accepted, and the other
+  /// loops are judged again without it. A loop withdrawn before it arrives
+  /// stays out when it does. Returns false when it was withdrawn already.
+  bool withdraw(const LoopId& id);
+
   /// The current decision (valid until the next add). Loops whose keyframes
   /// the trajectories did not reach when they were added are checked now if
   /// they reach them.
@@ -172,7 +182,7 @@ class PairwiseConsistency {
   double distance(const Candidate& first, const Candidate& second) const;
   std::vector<std::size_t> canonicalOrder() const;
   bool cliqueUnchanged() const;
-  bool spansEnough(const std::vector<Factor>& loops) const;
+
   void solve();
 
   PcmConfig config_;
@@ -181,6 +191,7 @@ class PairwiseConsistency {
   std::pair<std::uint64_t, std::uint64_t> revisions_{0, 0};  ///< of the trees the graph used
   std::vector<Candidate> candidates_;
   std::map<LoopId, std::size_t> index_;
+  std::set<LoopId> withdrawn_;  ///< out of the judgement (withdraw), whether held or not
   std::vector<std::size_t> vertex_candidate_;  ///< candidate of each graph vertex
   AdjacencyGraph graph_;
   std::size_t edges_ = 0;

@@ -111,6 +111,10 @@ struct DescriptorMessage {
   double stamp = 0.0;                    ///< s, the keyframe's time
   std::vector<std::uint8_t> descriptor;  ///< place::encodeIris (or the Scan Context codec)
   std::optional<OdometryStep> odometry;  ///< none for a robot's first keyframe
+  /// The descriptor distance from this keyframe to the closest place like it
+  /// elsewhere on the sender's own route (place::PlaceIndex::lookAlikeDistance),
+  /// in [0, 1]; none when the sender knows none. On the wire in 16 bits.
+  std::optional<float> look_alike;
 };
 
 /// Stage 2: the sender's keyframe `query` seems to be the receiver's `match`.
@@ -133,8 +137,14 @@ enum class LoopStatus : std::uint8_t {
   degenerate,
   no_submap,  ///< the receiver holds no keyframes around `match`
   bad_cloud,  ///< the candidate's cloud did not decode
+  /// Not an answer but a notice about a loop both robots hold: the solution
+  /// of optimisation round `round` does not explain it, as the sender sees
+  /// it (backend/loop_check.hpp). A loop both robots give notice of for one
+  /// round is withdrawn by both.
+  unexplained,
+  symmetric,  ///< the query aligns as well turned half a turn (registration::RejectReason)
 };
-inline constexpr std::uint8_t kLoopStatuses = 8;
+inline constexpr std::uint8_t kLoopStatuses = 10;
 
 /// Stage 3: the answer to a LoopCandidate, sent back to the robot that asked.
 struct LoopMeasurement {
@@ -143,6 +153,7 @@ struct LoopMeasurement {
   LoopStatus status = LoopStatus::verified;
   Eigen::Isometry3d T_match_query = Eigen::Isometry3d::Identity();  ///< when verified
   core::Matrix6d covariance = core::Matrix6d::Identity();           ///< [rho; phi], when verified
+  std::uint32_t round = 0;  ///< when unexplained: the optimisation round whose solution it was
 };
 
 /// Which optimisation a DGS message belongs to, and where in it the sender is.

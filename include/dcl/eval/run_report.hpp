@@ -39,6 +39,9 @@ struct RobotRun {
   std::size_t intra_loops = 0;
   std::size_t inter_loops_accepted = 0;
   std::size_t inter_loops_rejected = 0;
+  /// Of the accepted inter-robot loops this robot is the lower robot of, those
+  /// the ground truth says are wrong (loopIsWrong); none without ground truth.
+  std::optional<std::size_t> inter_loops_accepted_wrong;
   std::size_t bytes_sent = 0;
   std::size_t bytes_received = 0;
   /// Bytes sent per message kind name ("descriptor", ...) per time bin of

@@ -18,8 +18,10 @@ struct FrameHealth {
   bool accepted = false;    ///< the frame updated the pose (false: skipped, see `problem`)
   bool converged = false;   ///< the registration met its convergence criterion
   bool degenerate = false;  ///< the registration is poorly constrained in some direction
-  bool redeskewed = false;  ///< deskewed and registered again with the motion it registered at
-  int iterations = 0;       ///< registration iterations used
+  /// The sweep's motion changed sharply (braking, a turn's onset, a jolt):
+  /// its own twist was estimated with its pose instead of the last velocity.
+  bool sharp_motion = false;
+  int iterations = 0;               ///< registration iterations used
   std::size_t correspondences = 0;  ///< inlier correspondences at the last iteration
   double residual = 0.0;  ///< m, RMS point-to-point (or point-to-plane) residual of inliers
   std::string problem;    ///< empty when all is well; else what was wrong (skipped frames)

@@ -44,6 +44,23 @@ core::PointCloud toCloud(std::span<const Eigen::Vector3d> points);
 std::vector<Eigen::Vector3d> deskew(const core::PointCloud& cloud, const core::Vector6d& velocity,
                                     double reference_time = 0.0);
 
+/// The sensor's motion through a sweep under constant velocity, tabulated:
+/// T_reference_sensor(t) = exp(t * velocity) for t (s from the reference
+/// time) in [t_min, t_max], in `bins` steps (bins of 0.1 ms move a car at
+/// 20 m/s by 2 mm), so a sweep's points need one table, not one exp each.
+class SweepMotion {
+ public:
+  SweepMotion(const core::Vector6d& velocity, double t_min, double t_max, std::size_t bins = 1024);
+
+  /// The pose at offset `t`, clamped to the span.
+  [[nodiscard]] const Eigen::Isometry3d& at(double t) const;
+
+ private:
+  std::vector<Eigen::Isometry3d> poses_;
+  double t_min_;
+  double scale_;  ///< bins per second
+};
+
 /// The middle of the sweep, (min + max) / 2 of the per-point times (s after the
 /// stamp); 0 for a cloud without times.
 double sweepMidTime(const core::PointCloud& cloud);
@@ -51,6 +68,11 @@ double sweepMidTime(const core::PointCloud& cloud);
 /// How long the sweep took, max - min of the per-point times (s); 0 for a
 /// cloud without times.
 double sweepDuration(const core::PointCloud& cloud);
+
+/// The indices of the first point of `points` in each occupied voxel of edge
+/// `voxel_size` (m), in the order of first occurrence (deterministic).
+std::vector<std::size_t> voxelDownsampleIndices(std::span<const Eigen::Vector3d> points,
+                                                double voxel_size);
 
 /// One point per occupied voxel of edge `voxel_size` (m): the first point of
 /// `points` falling in it, in the order of first occurrence (deterministic).

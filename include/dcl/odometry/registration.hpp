@@ -77,6 +77,40 @@ RegistrationResult registerScan(std::span<const Eigen::Vector3d> source_points,
                                 const Eigen::Isometry3d& T_target_source_guess,
                                 const IcpConfig& config);
 
+/// A sweep as registration takes it: every point in the sensor frame at its
+/// firing time, and that time (s) relative to the reference time whose pose
+/// is estimated (the sweep's middle). Empty offsets: a rigid scan.
+struct SweepPoints {
+  std::vector<Eigen::Vector3d> points;
+  std::vector<double> offsets;  ///< one per point, or none
+};
+
+/// What is known of a sweep's own motion before it is registered: the
+/// predicted twist and how far the sweep's twist may stray from it.
+struct SweepMotionPrior {
+  core::Vector6d velocity = core::Vector6d::Zero();  ///< [v; omega], sensor frame (m/s, rad/s)
+  core::Vector6d sigma = core::Vector6d::Ones();     ///< standard deviation about it, per axis
+};
+
+/// The outcome of a sweep's registration: its pose and its own motion.
+struct SweepRegistration {
+  RegistrationResult registration;                   ///< the pose at the reference time
+  core::Vector6d velocity = core::Vector6d::Zero();  ///< the twist that deskews the sweep
+};
+
+/// Registers a sweep whose motion during the sweep is unknown: its pose at
+/// the reference time and its twist [v; omega] are estimated together (the
+/// continuous-time idea of CT-ICP, Dellenbach et al. 2022, with one twist a
+/// sweep instead of a begin and an end pose), each point placed by the
+/// twist at its own time. A sweep deskewed with the motion before it is bent
+/// where the motion changed (braking into a turn bends a sweep by a degree at
+/// its ends); here the bend is part of what is fitted. The prior holds the
+/// twist where the scene does not see it (a point residual weighs as noise
+/// of `config.kernel_scale`). Without offsets this is registerScan.
+SweepRegistration registerSweep(const SweepPoints& sweep, const VoxelHashMap& target_map,
+                                const Eigen::Isometry3d& T_target_source_guess,
+                                const SweepMotionPrior& prior, const IcpConfig& config);
+
 /// How the adaptive threshold starts and what motion it learns from.
 struct AdaptiveThresholdConfig {
   double initial_threshold = 2.0;  ///< m, sigma before any motion was seen (KISS-ICP: 2.0)

@@ -117,6 +117,27 @@ class PlaceIndex {
                                             const KeyframePosition& position,
                                             QueryScope scope = QueryScope::kOtherRobot) const;
 
+  /// queryDistinct for a neighbour's query that also knows the query's own
+  /// look-alike distance (lookAlikeDistance on the neighbour's index): a
+  /// match not clearly closer than the place the query resembles elsewhere
+  /// on its own robot's route is refused as well. Repeated structure that one
+  /// robot has passed twice makes any match of it ambiguous, even where the
+  /// other robot holds only one of the repeats (the aliases of a repeated
+  /// block three blocks apart, each robot having seen one of them).
+  [[nodiscard]] DistinctMatch queryDistinct(const PlaceDescriptor& query,
+                                            const KeyframePosition& position,
+                                            std::optional<float> look_alike) const;
+
+  /// The smallest match distance from `query`, a keyframe of this index's
+  /// robot at `at` (its own estimate), to its keyframes stored before slot
+  /// `before` that lie distinct_separation or more from it: how closely the
+  /// place repeats elsewhere on the robot's route. None when no such keyframe
+  /// is among the nearest keys.
+  [[nodiscard]] std::optional<float> lookAlikeDistance(const PlaceDescriptor& query,
+                                                       const Eigen::Vector3d& at,
+                                                       const KeyframePosition& position,
+                                                       std::size_t before) const;
+
   /// Number of keyframes stored.
   [[nodiscard]] std::size_t size() const { return ids_.size(); }
   /// The robot whose keyframes these are.

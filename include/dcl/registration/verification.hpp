@@ -56,6 +56,14 @@ struct VerificationConfig {
   FpfhConfig fpfh;                  ///< the features of the fallback
   RansacConfig ransac;              ///< the global registration of the fallback
   int submap_keyframes = 10;        ///< keyframes either side of the matched one in its submap
+  /// An accepted alignment is tried again with the query turned half a turn
+  /// about its own vertical axis; when that aligns too, with at least this
+  /// share of the first one's inliers, the place looks the same both ways
+  /// (a symmetric corridor, a straight street of repeated facades) and the
+  /// loop is refused as ambiguous: which way round it is, is chance. 0: not
+  /// checked. Robots driving one street in opposite directions meet exactly
+  /// there, and LiDAR-Iris's yaw finds both driving directions alike.
+  double symmetric_share = 0.9;
 
   /// Lists the fields for the YAML loader (io/config.hpp).
   template <class V>
@@ -81,6 +89,9 @@ struct VerificationConfig {
     v.section("fpfh", fpfh, "FPFH features of the fallback");
     v.section("ransac", ransac, "RANSAC global registration of the fallback");
     v.field("submap_keyframes", submap_keyframes, "keyframes either side in the submap");
+    v.field("symmetric_share", symmetric_share,
+            "refuse a loop that also aligns turned half a turn, with this share of its inliers "
+            "(0: not checked)");
   }
 };
 
@@ -92,12 +103,14 @@ enum class RejectReason : std::uint8_t {
   low_inlier_share,  ///< too few query points lie on the submap after alignment
   high_fitness,      ///< the pairs are too far apart on average
   degenerate,        ///< the scene leaves a direction of the alignment unconstrained
+  symmetric,         ///< the query aligns as well turned half a turn: the way round is chance
 };
 
 /// Number of RejectReason values (for per-reason counters).
-inline constexpr std::size_t kRejectReasonCount = 6;
+inline constexpr std::size_t kRejectReasonCount = 7;
 
-/// "none", "too_few_points", "not_converged", "low_inlier_share", "high_fitness", "degenerate".
+/// "none", "too_few_points", "not_converged", "low_inlier_share", "high_fitness", "degenerate",
+/// "symmetric".
 std::string_view toString(RejectReason reason);
 
 /// The outcome of one verification.

@@ -54,6 +54,7 @@
 
 #include <dcl/backend/dgs.hpp>
 #include <dcl/backend/distributed_refine.hpp>
+#include <dcl/backend/loop_check.hpp>
 #include <dcl/backend/pcm.hpp>
 #include <dcl/backend/pose_graph.hpp>
 #include <dcl/comm/messenger.hpp>
@@ -81,6 +82,9 @@ struct RobotConfig {
   /// knows this robot's odometry chain, and both robots must check loops
   /// against the same trajectories to decide alike.
   backend::PcmConfig pcm;
+  /// After each round, the loops to its members its solution cannot explain
+  /// (the second line of defence after PCM; backend/loop_check.hpp).
+  backend::LoopCheckConfig loop_check;
   comm::MessengerConfig messenger;  ///< heartbeats, neighbours, retransmission
   /// The distributed optimisation's stages, at most 100 steps each in a
   /// round (the refinement goes on from wherever DGS stopped).
@@ -102,8 +106,9 @@ struct RobotConfig {
     return c;
   }();
   /// Keyframes between the own keyframes of two candidates to one neighbour
-  /// at least (1: every match): loops a few metres apart add little to the
-  /// graph but their clouds, their verification and their separators.
+  /// at least (1: every match), once the pair holds pcm.min_loops accepted
+  /// loops: loops a few metres apart add little to the graph but their
+  /// clouds, their verification and their separators.
   std::uint64_t candidate_spacing = 3;
   /// Noise added to every verified loop's covariance (standard deviations, m
   /// and rad): the registration's own covariance sees only how well the two
@@ -126,7 +131,9 @@ struct RobotConfig {
   /// least: a group optimises at most once a period, however fast its
   /// messages travel. (Counted from a round's end, a swarm over DDS, whose
   /// rounds take a second where the simulated radio's take eight, ran twice
-  /// as many rounds and sent twice the bytes.)
+  /// as many rounds and sent twice the bytes.) Only an announce_period when
+  /// the group's loops grew by half since its last round: a new pair's first
+  /// round, on a handful of loops, is redone while the robots are in range.
   double optimise_period = 20.0;
   /// s a round may go without a step (DGS or refinement) before it is given
   /// up: a member stopped answering. A round that keeps stepping is not cut.
@@ -220,5 +227,10 @@ class RobotNode {
 
 /// Throws core::Error naming the first invalid field.
 void validate(const RobotConfig& config);
+
+/// The covariance a verified inter-robot loop is kept with: the
+/// registration's, with the configured loop noise added
+/// (RobotConfig::loop_sigma_translation, loop_sigma_rotation, loop_sigma_tilt).
+core::Matrix6d loopCovariance(const core::Matrix6d& registration, const RobotConfig& config);
 
 }  // namespace dcl::robot

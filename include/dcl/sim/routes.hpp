@@ -222,4 +222,22 @@ struct AliasingRouteConfig {
 std::vector<Route> aliasingRoutes(int robots, std::uint64_t seed,
                                   const AliasingRouteConfig& config = {});
 
+/// Settings of the crossing routes.
+struct CrossingRouteConfig {
+  double route_length = 160.0;        ///< m, each robot's straight street
+  double lane_offset = 1.5;           ///< m, right of the centreline in the driving direction
+  double speed = 2.0;                 ///< m/s cruise speed
+  double acceleration = 0.5;          ///< m/s^2 at the start and the end
+  double rate = 10.0;                 ///< Hz, poses per second
+  double terrain_amplitude = 1.0;     ///< m, amplitude of the gentle ground undulation
+  double terrain_wavelength = 250.0;  ///< m, its wavelength
+};
+
+/// Two robots on straight streets that cross at their middles, at right
+/// angles give or take a few degrees (the seed's): they see each other's
+/// place for a few keyframes, where they pass the crossing, and nowhere else
+/// (robots that meet once, briefly, as they mostly do in the field). The
+/// seed also jitters the speeds.
+std::vector<Route> crossingRoutes(std::uint64_t seed, const CrossingRouteConfig& config = {});
+
 }  // namespace dcl::sim
