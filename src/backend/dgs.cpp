@@ -709,8 +709,12 @@ struct RunningRound {
 class Driver {
  public:
   Driver(PoseGraph& graph, const DgsConfig& config, const std::set<core::RobotId>& vanish,
-         int vanish_after)
-      : graph_(graph), config_(config), vanish_(vanish), vanish_after_(vanish_after) {
+         int vanish_after, const DgsTraffic& traffic)
+      : graph_(graph),
+        config_(config),
+        vanish_(vanish),
+        vanish_after_(vanish_after),
+        traffic_(traffic) {
     for (auto& [robot, local] : partitionByRobot(graph)) {
       agents_.emplace(robot, DgsAgent(robot, std::move(local), config));
     }
@@ -787,6 +791,7 @@ class Driver {
 
   void deliver(const std::vector<DgsMessage>& messages) {
     for (const DgsMessage& m : messages) {
+      if (traffic_) traffic_(m);
       ++summary_.messages;
       summary_.separator_values_rotation += m.rotations.size();
       summary_.separator_values_pose += m.poses.size();
@@ -819,6 +824,7 @@ class Driver {
   DgsConfig config_;
   std::set<core::RobotId> vanish_;
   int vanish_after_ = 0;
+  const DgsTraffic& traffic_;
   std::map<core::RobotId, DgsAgent> agents_;
   std::vector<RunningRound> rounds_;
   std::set<core::RobotId> silent_;
@@ -829,10 +835,10 @@ class Driver {
 }  // namespace
 
 DgsSummary runDgs(PoseGraph& graph, const DgsConfig& config, const std::set<core::RobotId>& vanish,
-                  int vanish_after) {
+                  int vanish_after, const DgsTraffic& traffic) {
   const auto start = std::chrono::steady_clock::now();
   validate(config);
-  Driver driver(graph, config, vanish, vanish_after);
+  Driver driver(graph, config, vanish, vanish_after, traffic);
   DgsSummary summary = driver.run();
   summary.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return summary;

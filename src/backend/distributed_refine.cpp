@@ -1,10 +1,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
+#include <dcl/backend/dgs.hpp>
 #include <dcl/backend/distributed_refine.hpp>
 #include <dcl/core/error.hpp>
 
@@ -17,6 +19,9 @@ using PoseMap = std::map<core::PoseKey, Eigen::Isometry3d>;
 
 /// Levenberg-Marquardt iterations at most for a robot that solves its block alone.
 constexpr int kAloneIterations = 100;
+/// Coarse cells along a robot's longest side at most: (64 + 1)^3 nodes of six
+/// unknowns is already more than a coarse level should hold.
+constexpr int kMaxCoarseCells = 64;
 
 void require(bool ok, const char* field, const std::string& what) {
   if (!ok) throw core::Error(std::string("refine config: ") + field + " " + what);
@@ -28,7 +33,7 @@ bool nonNegative(double value) {
 
 /// The local graph of every robot: its nodes, every factor touching one of
 /// them whose two ends the graph holds, the neighbours' nodes those factors
-/// name, and its fixed nodes; the gauge node when the graph fixes none.
+/// name, and its fixed nodes.
 std::map<core::RobotId, PoseGraph> localGraphs(const PoseGraph& graph) {
   std::map<core::RobotId, PoseGraph> locals;
   for (const auto& [key, pose] : graph.nodes()) locals[key.robot].addNode(key, pose);
@@ -43,10 +48,6 @@ std::map<core::RobotId, PoseGraph> localGraphs(const PoseGraph& graph) {
   }
   for (const core::PoseKey& key : graph.fixedNodes()) {
     if (graph.hasNode(key)) locals[key.robot].fix(key);
-  }
-  if (graph.fixedNodes().empty() && graph.size() > 0) {
-    const core::PoseKey& lowest = graph.nodes().begin()->first;
-    locals[lowest.robot].fix(lowest);
   }
   return locals;
 }
@@ -65,6 +66,13 @@ void validate(const RefineConfig& config) {
           "must be at least 0, got " + std::to_string(config.factorisation_reuse));
   require(nonNegative(config.block_tolerance), "block_tolerance",
           "must be finite and at least 0, got " + std::to_string(config.block_tolerance));
+  require(config.coarse_cells >= 0 && config.coarse_cells <= kMaxCoarseCells, "coarse_cells",
+          "must be in 0.." + std::to_string(kMaxCoarseCells) + ", got " +
+              std::to_string(config.coarse_cells));
+  require(nonNegative(config.coarse_refresh) && config.coarse_refresh < 1.0, "coarse_refresh",
+          "must be in [0, 1), got " + std::to_string(config.coarse_refresh));
+  require(nonNegative(config.separator_tolerance), "separator_tolerance",
+          "must be finite and at least 0, got " + std::to_string(config.separator_tolerance));
 }
 
 struct RefineAgent::Impl {
@@ -83,6 +91,17 @@ struct RefineAgent::Impl {
   PoseMap neighbours_kept_before;
   PoseMap received;            // neighbours' separators sent in this round
   std::vector<Factor> active;  // the factors in the problem
+  std::vector<detail::RelativePoseMeasurement> measurements;  // of `active`, for coarse terms
+  std::optional<CoarseGrid> grid;             // own; none: no coarse motion of own poses
+  std::map<core::RobotId, CoarseGrid> grids;  // own and the neighbours' that have one
+  CoarseBlocks blocks_shared;                 // the coarse blocks last shared
+  // Own separators as the neighbours hold them: as of the last kept round,
+  // the round before, and at this round's start (their extrapolation and
+  // coarse step of the values held), then what they hold after this round.
+  PoseMap told;
+  PoseMap told_before;
+  PoseMap told_now;
+  double block_chi2 = 0.0;  // the block's chi-square a factor after the last step
 
   Impl(core::RobotId robot_id, const PoseGraph& local, const RefineConfig& refine_config)
       : robot(robot_id), config(refine_config) {
@@ -101,6 +120,21 @@ struct RefineAgent::Impl {
     activatePending();
     kept = kept_before = estimates;
     neighbours_kept_before = neighbours_kept;
+    for (const auto& [neighbour, keys] : separators) {
+      for (const core::PoseKey& key : keys) told.emplace(key, estimates.at(key));
+    }
+    told_before = told_now = told;
+    makeGrid();
+  }
+
+  /// The own coarse grid over the own poses; none when coarse corrections are
+  /// off or a pose of this robot holds the gauge (the block may not move).
+  void makeGrid() {
+    if (config.coarse_cells == 0 || !held.empty() || estimates.empty()) return;
+    std::vector<Eigen::Vector3d> positions;
+    for (const auto& [key, T] : estimates) positions.emplace_back(T.translation());
+    grid = makeCoarseGrid(positions, config.coarse_cells);
+    grids[robot] = *grid;
   }
 
   [[nodiscard]] bool own(const core::PoseKey& key) const { return key.robot == robot; }
@@ -128,6 +162,7 @@ struct RefineAgent::Impl {
     std::erase_if(pending, [this](const Factor& f) {
       if (!problem.addFactor(f)) return false;
       active.push_back(f);
+      measurements.emplace_back(f.T_from_to, detail::sqrtInformation(f.information));
       for (const core::PoseKey& end : {f.from, f.to}) {
         if (!own(end) || held.contains(end)) problem.setConstant(end);
       }
@@ -159,10 +194,115 @@ struct RefineAgent::Impl {
     }
   }
 
-  void beginRound(double momentum) {
+  void beginRound(double momentum, const CoarseStep* coarse) {
     received.clear();
     startFrom(kept_before, kept, momentum);
     startFrom(neighbours_kept_before, neighbours_kept, momentum);
+    if (coarse != nullptr) moveBy(*coarse);
+    predictTold(momentum, coarse);
+  }
+
+  /// Where the neighbours start this round's copies of the own separators:
+  /// what they hold, moved as they move it (startFrom, moveBy).
+  void predictTold(double momentum, const CoarseStep* coarse) {
+    for (const auto& [key, T] : told) {
+      const bool variable = problem.isVariable(key);
+      Eigen::Isometry3d start = T;
+      if (momentum > 0.0 && variable) {
+        start = core::interpolateGeodesic(told_before.at(key), T, 1.0 + momentum);
+      }
+      if (coarse != nullptr && grid && variable) start = applyCoarse(*coarse, robot, *grid, start);
+      told_now.insert_or_assign(key, start);
+    }
+  }
+
+  /// The own separators whose estimate is further from the neighbours' copy
+  /// than separator_tolerance, in some active inter-robot factor's whitened
+  /// residual, relative to the block's residual a factor (a graph that fits
+  /// its measurements to a tenth of their noise needs its copies ten times
+  /// closer); those are sent, and the copies become their estimates.
+  [[nodiscard]] std::set<core::PoseKey> moved() {
+    std::set<core::PoseKey> keys;
+    for (const auto& [key, T] : told_now) {
+      if (config.separator_tolerance == 0.0) keys.insert(key);
+    }
+    const double tolerance2 = config.separator_tolerance * config.separator_tolerance * block_chi2;
+    for (const Factor& f : active) {
+      if (own(f.from) == own(f.to)) continue;
+      const core::PoseKey& mine = own(f.from) ? f.from : f.to;
+      const auto it = told_now.find(mine);
+      if (it == told_now.end() || keys.contains(mine)) continue;
+      const auto residual = [&](const Eigen::Isometry3d& T_mine) {
+        return own(f.from) ? factorResidual(f, T_mine, problem.pose(f.to))
+                           : factorResidual(f, problem.pose(f.from), T_mine);
+      };
+      const core::Vector6d d = residual(estimates.at(mine)) - residual(it->second);
+      if (d.dot(f.information * d) > tolerance2) keys.insert(mine);
+    }
+    for (const core::PoseKey& key : keys) told_now.insert_or_assign(key, estimates.at(key));
+    return keys;
+  }
+
+  /// A pose the coarse step moves: of a robot with a grid, not held.
+  [[nodiscard]] bool movable(const core::PoseKey& key) const {
+    return grids.contains(key.robot) && !held_neighbours.contains(key) &&
+           (own(key) ? problem.isVariable(key) : problem.hasPose(key));
+  }
+
+  /// Own poses and the copies of the neighbours' separators moved by the
+  /// group's coarse step; the copies count as received in this round.
+  void moveBy(const CoarseStep& step) {
+    for (const auto& [key, T] : kept) {
+      if (movable(key))
+        problem.setPose(key, applyCoarse(step, robot, grids.at(robot), problem.pose(key)));
+    }
+    for (const core::PoseKey& key : neighbour_poses) {
+      if (!movable(key)) continue;
+      const Eigen::Isometry3d T =
+          applyCoarse(step, key.robot, grids.at(key.robot), problem.pose(key));
+      problem.setPose(key, T);
+      received.insert_or_assign(key, T);
+    }
+  }
+
+  /// The coarse columns of one end of a factor (none when it does not move).
+  void appendColumns(std::vector<CoarseColumn>& columns, const core::Matrix6d& J,
+                     const core::PoseKey& key, const Eigen::Isometry3d& T) const {
+    if (movable(key)) appendCoarseColumns(columns, J, key.robot, grids.at(key.robot), T);
+  }
+
+  /// The share at the current values; its blocks only when they moved by
+  /// more than coarse_refresh since the ones last shared (or none were).
+  CoarseShare shareCoarse() {
+    CoarseShare share = coarseShare(true);
+    if (!blocks_shared.empty() &&
+        relativeChange(share.hessian, blocks_shared) <= config.coarse_refresh) {
+      share.hessian.clear();
+    } else {
+      blocks_shared = share.hessian;
+    }
+    return share;
+  }
+
+  [[nodiscard]] CoarseShare coarseShare(bool hessian) const {
+    CoarseShare share{robot, {}, {}};
+    std::vector<CoarseColumn> columns;
+    for (std::size_t i = 0; i < active.size(); ++i) {
+      const Factor& f = active[i];
+      if (!owns(f)) continue;
+      const Eigen::Isometry3d T_from = problem.pose(f.from);
+      const Eigen::Isometry3d T_to = problem.pose(f.to);
+      core::Matrix6d J_from;
+      core::Matrix6d J_to;
+      const core::Vector6d r = measurements[i].linearise(
+          Eigen::Quaterniond(T_from.linear()), T_from.translation(),
+          Eigen::Quaterniond(T_to.linear()), T_to.translation(), J_from, J_to);
+      columns.clear();
+      appendColumns(columns, J_from, f.from, T_from);
+      appendColumns(columns, J_to, f.to, T_to);
+      addToShare(share, r, columns, hessian);
+    }
+    return share;
   }
 
   void receive(const PoseMap& poses) {
@@ -188,27 +328,37 @@ struct RefineAgent::Impl {
     step.cost_before = summary.initial_cost;
     step.cost_after = summary.final_cost;
     step.iterations = summary.iterations;
+    block_chi2 = summary.final_cost / static_cast<double>(problem.factors());
     for (auto& [key, pose] : estimates) {
       if (problem.isVariable(key)) pose = problem.pose(key);
     }
   }
 
+  /// Every factor has one owner: the lower robot of its ends, or the robot
+  /// holding a neighbour's pose constant.
+  [[nodiscard]] bool owns(const Factor& f) const {
+    const bool held_end = held_neighbours.contains(f.from) || held_neighbours.contains(f.to);
+    return held_end || std::min(f.from.robot, f.to.robot) == robot;
+  }
+
   [[nodiscard]] double ownedCost() const {
     double cost = 0.0;
     for (const Factor& f : active) {
-      const bool held_end = held_neighbours.contains(f.from) || held_neighbours.contains(f.to);
-      if (std::min(f.from.robot, f.to.robot) != robot && !held_end) continue;
+      if (!owns(f)) continue;
       const core::Vector6d r = factorResidual(f, problem.pose(f.from), problem.pose(f.to));
       cost += r.dot(f.information * r);
     }
     return cost;
   }
 
-  [[nodiscard]] std::map<core::RobotId, PoseMap> outgoing() const {
+  [[nodiscard]] std::map<core::RobotId, PoseMap> outgoing() {
+    const std::set<core::PoseKey> sent = moved();
     std::map<core::RobotId, PoseMap> messages;
     for (const auto& [neighbour, keys] : separators) {
       PoseMap& poses = messages[neighbour];
-      for (const core::PoseKey& key : keys) poses.emplace(key, estimates.at(key));
+      for (const core::PoseKey& key : keys) {
+        if (sent.contains(key)) poses.emplace(key, estimates.at(key));
+      }
     }
     return messages;
   }
@@ -219,7 +369,12 @@ struct RefineAgent::Impl {
     } else {
       kept_before = std::exchange(kept, estimates);
       neighbours_kept_before = neighbours_kept;
+      // What was not sent stays where this round started it, on both sides.
+      for (auto& [key, pose] : neighbours_kept) {
+        if (problem.hasPose(key)) pose = problem.pose(key);
+      }
       for (const auto& [key, pose] : received) neighbours_kept.insert_or_assign(key, pose);
+      told_before = std::exchange(told, told_now);
     }
     received.clear();
   }
@@ -249,8 +404,24 @@ const std::set<core::PoseKey>& RefineAgent::neighbourPoses() const {
   return impl_->neighbour_poses;
 }
 
-void RefineAgent::beginRound(double momentum) {
-  impl_->beginRound(momentum);
+void RefineAgent::beginRound(double momentum, const CoarseStep* coarse) {
+  impl_->beginRound(momentum, coarse);
+}
+
+const std::optional<CoarseGrid>& RefineAgent::coarseGrid() const {
+  return impl_->grid;
+}
+
+void RefineAgent::setCoarseGrid(core::RobotId neighbour, const CoarseGrid& grid) {
+  if (neighbour != impl_->robot) impl_->grids[neighbour] = grid;
+}
+
+CoarseShare RefineAgent::coarseShare(bool hessian) const {
+  return impl_->coarseShare(hessian);
+}
+
+CoarseShare RefineAgent::shareCoarse() {
+  return impl_->shareCoarse();
 }
 
 void RefineAgent::receive(const PoseMap& neighbour_poses) {
@@ -284,21 +455,103 @@ namespace {
 
 using Agents = std::map<core::RobotId, RefineAgent>;
 
+/// What the driver passes along to every round.
+struct Run {
+  PoseGraph& graph;
+  RefineSummary& summary;
+  const RefineTraffic& traffic;
+};
+
 /// One round: every robot steps in id order, its separators delivered at once
-/// (Gauss-Seidel), its estimates written into `graph`; returns the graph's cost.
-double runRound(Agents& agents, PoseGraph& graph, double momentum, RefineSummary& summary) {
-  for (auto& [robot, agent] : agents) agent.beginRound(momentum);
+/// (Gauss-Seidel), its estimates written into the graph; then every robot
+/// shares its part of the cost. Returns the sum of the shares: the graph's
+/// cost at the neighbours' copies of the separators, as the robots know it.
+double runRound(Agents& agents, Run& run, double momentum, const CoarseStep* coarse) {
+  const int round = ++run.summary.rounds;
+  for (auto& [robot, agent] : agents) agent.beginRound(momentum, coarse);
   for (auto& [robot, agent] : agents) {
     const RefineStep step = agent.step();
     for (const auto& [neighbour, poses] : step.outgoing) {
       agents.at(neighbour).receive(poses);
-      summary.values_sent[robot] += poses.size();
-      summary.separator_values += poses.size();
+      run.summary.values_sent[robot] += poses.size();
+      run.summary.separator_values += poses.size();
+      if (run.traffic.separators) run.traffic.separators(robot, neighbour, round, poses);
     }
-    for (const auto& [key, pose] : agent.estimates()) graph.setEstimate(key, pose);
+    for (const auto& [key, pose] : agent.estimates()) run.graph.setEstimate(key, pose);
   }
-  ++summary.rounds;
-  return graphCost(graph);
+  double cost = 0.0;
+  for (auto& [robot, agent] : agents) {
+    const double share = agent.ownedCost();
+    if (run.traffic.cost) run.traffic.cost(robot, round, share);
+    cost += share;
+  }
+  return cost;
+}
+
+/// The group's coarse step at the kept round's estimates, from every robot's share.
+CoarseStep coarseStep(Agents& agents, Run& run, CoarseSolver& solver) {
+  std::vector<CoarseShare> shares;
+  for (auto& [robot, agent] : agents) {
+    shares.push_back(agent.shareCoarse());
+    ++run.summary.coarse_shares;
+    run.summary.coarse_blocks += shares.back().hessian.size();
+    if (run.traffic.coarse) run.traffic.coarse(run.summary.rounds, shares.back());
+  }
+  return solver.solve(shares);
+}
+
+/// Every robot's grid to each of its neighbours (robots holding the gauge have none).
+void shareGrids(Agents& agents, const RefineTraffic& traffic) {
+  for (auto& [robot, agent] : agents) {
+    if (!agent.coarseGrid()) continue;
+    for (const core::RobotId neighbour : agent.neighbours()) {
+      agents.at(neighbour).setCoarseGrid(robot, *agent.coarseGrid());
+      if (traffic.grid) traffic.grid(robot, neighbour, *agent.coarseGrid());
+    }
+  }
+}
+
+/// The separators every robot's neighbours start from (sent before the first step).
+void announceStart(const Agents& agents, const RefineTraffic& traffic) {
+  if (!traffic.separators) return;
+  for (const auto& [robot, agent] : agents) {
+    for (const auto& [neighbour, keys] : agent.separators()) {
+      RefineTraffic::Poses poses;
+      for (const core::PoseKey& key : keys) poses.emplace(key, agent.estimates().at(key));
+      traffic.separators(robot, neighbour, 0, poses);
+    }
+  }
+}
+
+/// Where the lowest node of every group of connected robots without a fixed
+/// node starts: it is put back there at the end (the gauge).
+std::map<core::PoseKey, Eigen::Isometry3d> floatingAnchors(const PoseGraph& graph) {
+  std::map<core::PoseKey, Eigen::Isometry3d> anchors;
+  for (const std::set<core::RobotId>& group : connectedGroups(graph)) {
+    const auto in = [&](const core::PoseKey& key) { return group.contains(key.robot); };
+    const auto& fixed = graph.fixedNodes();
+    if (std::any_of(fixed.begin(), fixed.end(), in)) continue;
+    for (const auto& [key, T] : graph.nodes()) {
+      if (!in(key)) continue;
+      anchors.emplace(key, T);
+      break;
+    }
+  }
+  return anchors;
+}
+
+/// Moves each floating group rigidly so that its lowest node is back where it started.
+void reanchor(PoseGraph& graph, const std::map<core::PoseKey, Eigen::Isometry3d>& anchors) {
+  for (const auto& [anchor, T_start] : anchors) {
+    const Eigen::Isometry3d G = T_start * graph.estimate(anchor).inverse();
+    std::set<core::RobotId> group;
+    for (const std::set<core::RobotId>& g : connectedGroups(graph)) {
+      if (g.contains(anchor.robot)) group = g;
+    }
+    for (const auto& [key, T] : graph.nodes()) {
+      if (group.contains(key.robot)) graph.setEstimate(key, G * T);
+    }
+  }
 }
 
 /// Ends the round for every agent; an undone round's estimates leave `graph` too.
@@ -336,15 +589,15 @@ double RefineSchedule::momentum() const {
   return (t_ - 1.0) / (config_.accelerate ? nextNesterov(t_) : 1.0);
 }
 
-bool RefineSchedule::endRound(double cost) {
-  const double momentum_used = momentum();
+bool RefineSchedule::endRound(double cost, bool coarse) {
+  const bool plain = momentum() == 0.0 && !coarse;
   const bool keep = cost <= kept_costs_.back();
   if (keep) {
     kept_costs_.push_back(cost);
     converged_ = stalled(kept_costs_, config_);
     t_ = config_.accelerate ? nextNesterov(t_) : 1.0;
-  } else if (momentum_used > 0.0) {
-    ++restarts_;  // the momentum overshot: the next round starts without it
+  } else if (!plain) {
+    ++restarts_;  // momentum or the coarse step overshot: the next round starts without both
     t_ = 1.0;
   } else {
     converged_ = true;  // not even a plain round descends: rounding noise
@@ -358,21 +611,32 @@ bool RefineSchedule::done() const {
   return converged_ || rounds_ >= config_.max_rounds;
 }
 
-RefineSummary refineDistributed(PoseGraph& graph, const RefineConfig& config) {
+RefineSummary refineDistributed(PoseGraph& graph, const RefineConfig& config,
+                                const RefineTraffic& traffic) {
   validate(config);
   const auto start = std::chrono::steady_clock::now();
   RefineSummary summary;
   summary.initial_cost = summary.final_cost = graphCost(graph);
+  const auto anchors = floatingAnchors(graph);
   Agents agents;
   for (const auto& [robot, local] : localGraphs(graph)) {
     agents.emplace(robot, RefineAgent(robot, local, config));
     summary.values_sent[robot] = 0;
   }
+  shareGrids(agents, traffic);
+  announceStart(agents, traffic);
+  Run run{graph, summary, traffic};
   RefineSchedule schedule(config, summary.initial_cost);
+  CoarseSolver solver;  // one for all: every robot's copy takes the same steps
+  std::optional<CoarseStep> coarse;
   while (!schedule.done()) {
-    const double cost = runRound(agents, graph, schedule.momentum(), summary);
-    endRound(agents, graph, schedule.endRound(cost));
+    const double cost = runRound(agents, run, schedule.momentum(), coarse ? &*coarse : nullptr);
+    const bool keep = schedule.endRound(cost, coarse.has_value());
+    coarse.reset();
+    if (keep && config.coarse_cells > 0) coarse = coarseStep(agents, run, solver);
+    endRound(agents, graph, keep);
   }
+  reanchor(graph, anchors);
   summary.final_cost = schedule.cost();
   summary.restarts = schedule.restarts();
   summary.round_costs = schedule.roundCosts();

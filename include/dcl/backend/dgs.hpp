@@ -54,6 +54,7 @@
 #include <Eigen/Geometry>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <map>
 #include <memory>
 #include <set>
@@ -258,15 +259,21 @@ struct DgsSummary {
   double seconds = 0.0;
 };
 
+/// Every message the robots of runDgs hand each other, as they hand it: for a
+/// caller that measures it on the wire.
+using DgsTraffic = std::function<void(const DgsMessage& message)>;
+
 /// Runs DGS over every robot of `graph` in one process, in Algorithm 1's
 /// order, and writes the estimates back into `graph`. Robots in `vanish`
 /// stop answering after `vanish_after` stage-1 steps (for tests of a robot
 /// leaving mid-round): the rest of its group notices the silence after that
 /// sweep, abandons the round and starts a new one among the robots still
 /// connected without it; the silent robot keeps its estimates. Groups run side
-/// by side, one sweep of each per sweep. Throws core::Error for a bad
-/// configuration or information matrix.
+/// by side, one sweep of each per sweep. `traffic`, when set, sees every
+/// message sent. Throws core::Error for a bad configuration or information
+/// matrix.
 DgsSummary runDgs(PoseGraph& graph, const DgsConfig& config = {},
-                  const std::set<core::RobotId>& vanish = {}, int vanish_after = 0);
+                  const std::set<core::RobotId>& vanish = {}, int vanish_after = 0,
+                  const DgsTraffic& traffic = {});
 
 }  // namespace dcl::backend
