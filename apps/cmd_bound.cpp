@@ -516,7 +516,9 @@ std::vector<RobotBound> computeBound(const std::string& run, const std::string& 
   const backend::PoseGraph optimum = solved(Factors::joint, robots);
   const backend::PoseGraph exact = solved(Factors::exact, robots);
   if (costs != nullptr) {
-    *costs = {backend::graphCost(jointGraph(robots, Factors::joint)), backend::graphCost(optimum)};
+    *costs = JointCosts{};
+    costs->run = backend::graphCost(jointGraph(robots, Factors::joint));
+    costs->optimum = backend::graphCost(optimum);
     std::vector<RobotGraph> stayed;
     for (const RobotGraph& r : robots) {
       if (left.contains(r.name))

@@ -118,9 +118,11 @@ TEST_P(LoopCheckSeeds, AConsistentWrongClusterIsWithdrawnThroughAThirdRobot) {
   PcmConfig published;
   published.min_loops = 1;
   PcmResult pcm = runPcm(s.graph, published);
-  for (const PcmPairResult& pair : pcm.pairs)
-    if (pair.robot_a == core::RobotId(0) && pair.robot_b == core::RobotId(1))
+  for (const PcmPairResult& pair : pcm.pairs) {
+    if (pair.robot_a == core::RobotId(0) && pair.robot_b == core::RobotId(1)) {
       EXPECT_EQ(idsOf(pair.decision.accepted), idsOf(s.wrong_loops));
+    }
+  }
   PoseGraph graph = s.graph;
   const std::vector<LoopId> withdrawn = withdrawUnexplained(graph, {}, chordal());
   EXPECT_EQ(std::set<LoopId>(withdrawn.begin(), withdrawn.end()), idsOf(s.wrong_loops));
