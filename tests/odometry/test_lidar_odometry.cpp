@@ -209,6 +209,10 @@ struct TurnVariant {
   std::size_t threads = 2;  ///< the odometry's TBB threads
 };
 
+void PrintTo(const TurnVariant& variant, std::ostream* os) {
+  *os << variant.name;
+}
+
 class SimulatedKittiTurn : public ::testing::TestWithParam<TurnVariant> {};
 
 TEST_P(SimulatedKittiTurn, TracksTheCarBrakingIntoATurn) {
