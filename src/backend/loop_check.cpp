@@ -102,9 +102,9 @@ std::vector<LoopId> withdrawUnexplained(PoseGraph& graph, const LoopCheckConfig&
     std::vector<LoopId> chosen = worst->loops;
     std::optional<Trial> best;
     std::size_t best_support = 0;
+    if (pairs.size() == 1) by_support.clear();  // nothing to choose between
     for (const auto& [support, robots] : by_support) {
       if (best && support > best_support) break;
-      if (pairs.size() == 1) break;  // nothing to choose between
       std::set<LoopId> without = out;
       without.insert(pairs[robots].begin(), pairs[robots].end());
       Trial t = trial(without);
