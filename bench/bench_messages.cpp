@@ -86,7 +86,7 @@ const std::vector<Sample>& samples() {
     return std::vector<Sample>{
         {{header(std::nullopt), heartbeat}},
         {{header(std::nullopt),
-          comm::DescriptorMessage{KeyframeId(1204), 812.4, descriptor, std::nullopt, 0.31F}}},
+          comm::DescriptorMessage{KeyframeId(1204), 812.4, descriptor, std::nullopt, 0.31F, {}}}},
         {{header(RobotId(2)),
           comm::LoopCandidate{KeyframeId(1204), KeyframeId(377), -2.9F, 0.24F, cloud}}},
         {{header(RobotId(2)),

@@ -296,6 +296,13 @@ void fill(wire::Envelope& e, const DescriptorMessage& m) {
       throw core::Error("encode: look-alike distance not within [0, 1]");
     w.set_look_alike(1U + static_cast<std::uint32_t>(std::lround(*m.look_alike * kLookAlikeScale)));
   }
+  if (m.resembles.size() > kMaxResemblances) throw core::Error("encode: too many resemblances");
+  for (const Resemblance& r : m.resembles) {
+    if (!(r.distance >= 0.0F && r.distance <= 1.0F))
+      throw core::Error("encode: resemblance distance not within [0, 1]");
+    w.add_resembles(keyframeOut(r.keyframe));
+    w.add_resembles_distance(static_cast<std::uint32_t>(std::lround(r.distance * kLookAlikeScale)));
+  }
   if (!m.odometry) return;
   w.set_previous(keyframeOut(m.odometry->previous));
   putPose(*w.mutable_odometry_pose(), m.odometry->T_previous_keyframe);
@@ -424,11 +431,22 @@ Heartbeat bodyIn(const wire::Heartbeat& w) {
 DescriptorMessage bodyIn(const wire::Descriptor& w) {
   DescriptorMessage m{
       keyframeIn(w.keyframe(), "descriptor"), finiteIn(w.stamp(), "descriptor stamp"),
-      payloadIn(w.descriptor(), kMaxDescriptorBytes, "descriptor"), std::nullopt, std::nullopt};
+      payloadIn(w.descriptor(), kMaxDescriptorBytes, "descriptor"), std::nullopt, std::nullopt, {}};
   check(w.look_alike() <= 1U + static_cast<std::uint32_t>(kLookAlikeScale),
         "descriptor: look-alike distance beyond 1");
   if (w.look_alike() > 0U)
     m.look_alike = static_cast<float>(static_cast<double>(w.look_alike() - 1U) / kLookAlikeScale);
+  check(w.resembles_size() == w.resembles_distance_size(),
+        "descriptor: resemblances and their distances differ in number");
+  check(static_cast<std::size_t>(w.resembles_size()) <= kMaxResemblances,
+        "descriptor: too many resemblances");
+  for (int i = 0; i < w.resembles_size(); ++i) {
+    check(w.resembles_distance(i) <= static_cast<std::uint32_t>(kLookAlikeScale),
+          "descriptor: resemblance distance beyond 1");
+    m.resembles.push_back(
+        {keyframeIn(w.resembles(i), "descriptor resemblance"),
+         static_cast<float>(static_cast<double>(w.resembles_distance(i)) / kLookAlikeScale)});
+  }
   if (w.odometry_pose().empty() && w.odometry_covariance().empty()) return m;
   check(w.odometry_pose().size() == kPoseRecord, "descriptor: odometry pose record not 19 bytes");
   check(w.odometry_covariance().size() == kCovarianceRecord,

@@ -112,14 +112,24 @@ std::optional<float> PlaceIndex::lookAlikeDistance(const PlaceDescriptor& query,
                                                    const Eigen::Vector3d& at,
                                                    const KeyframePosition& position,
                                                    std::size_t before) const {
-  std::optional<float> closest;
+  const auto alikes = lookAlikes(query, at, position, before);
+  if (alikes.empty()) return std::nullopt;
+  return alikes.front().second;
+}
+
+std::vector<std::pair<core::KeyframeId, float>> PlaceIndex::lookAlikes(
+    const PlaceDescriptor& query, const Eigen::Vector3d& at, const KeyframePosition& position,
+    std::size_t before) const {
+  std::vector<std::pair<core::KeyframeId, float>> out;
   for (const auto& [slot, squared] :
        tree_->nearest(query.key(), config_.candidates, std::min(before, size()))) {
     if ((position(ids_[slot]) - at).norm() < config_.distinct_separation) continue;
-    const float d = descriptor_->match(query, *descriptions_[slot]).distance;
-    if (!closest || d < *closest) closest = d;
+    out.emplace_back(ids_[slot],
+                     static_cast<float>(descriptor_->match(query, *descriptions_[slot]).distance));
   }
-  return closest;
+  std::stable_sort(out.begin(), out.end(),
+                   [](const auto& x, const auto& y) { return x.second < y.second; });
+  return out;
 }
 
 }  // namespace dcl::place

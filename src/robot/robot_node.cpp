@@ -33,7 +33,8 @@ std::string refusalCounter(comm::LoopStatus status) {
                                            "rejected_no_submap",
                                            "rejected_bad_cloud",
                                            "unexplained",
-                                           "rejected_symmetric"};
+                                           "rejected_symmetric",
+                                           "repeated"};
   return kNames[static_cast<std::size_t>(status)];
 }
 
@@ -201,8 +202,11 @@ std::uint8_t initiator(std::uint32_t round) {
 struct Neighbour {
   explicit Neighbour(backend::PairwiseConsistency consistency) : pcm(std::move(consistency)) {}
   backend::PairwiseConsistency pcm;
-  std::set<std::pair<core::KeyframeId, core::KeyframeId>> asked;  ///< (own, theirs) candidates sent
-  std::map<backend::LoopId, backend::Factor> loops;               ///< verified, by either side
+  /// (own, theirs) candidates sent, with the match distance of theirs to own.
+  std::map<std::pair<core::KeyframeId, core::KeyframeId>, float> asked;
+  /// The neighbour's descriptors of those candidates, to judge them again.
+  std::map<core::KeyframeId, std::shared_ptr<const place::IrisDescriptor>> asked_descriptors;
+  std::map<backend::LoopId, backend::Factor> loops;  ///< verified, by either side
   std::set<backend::LoopId> accepted;                             ///< PCM's current set
   /// The loops of this pair that a round's solution did not explain, by
   /// round: as this robot saw them, and as the neighbour gave notice of them.
@@ -286,16 +290,24 @@ struct RobotNode::Impl {
     messenger.setKeyframes(static_cast<std::uint32_t>(mapper.keyframes().size()));
     auto description =
         std::make_shared<const place::IrisDescriptor>(place::describeIris(keyframe.cloud, iris));
-    const std::optional<float> look_alike = index.lookAlikeDistance(
-        *description, keyframe.T_odom_keyframe.translation(), ownPosition(), index.size());
+    const auto alikes = index.lookAlikes(*description, keyframe.T_odom_keyframe.translation(),
+                                         ownPosition(), index.size());
     index.add(keyframe.id, description);
     comm::DescriptorMessage m{keyframe.id, keyframe.stamp, place::encodeIris(*description),
-                              std::nullopt, look_alike};
-    if (keyframe.id.value() > 0) {
+                              std::nullopt, std::nullopt, {}};
+    if (!alikes.empty()) m.look_alike = alikes.front().second;
+    for (const auto& [earlier, distance] : alikes) {
+      if (m.resembles.size() == comm::kMaxResemblances) break;
+      m.resembles.push_back({earlier, distance});
+    }
+    if (keyframe.id.value() > 0)
       m.odometry = comm::OdometryStep{core::KeyframeId(keyframe.id.value() - 1),
                                       keyframe.T_previous_keyframe, keyframe.covariance};
-      // PCM checks the own chain as the neighbours read it (both sides decide alike).
-      m = std::get<comm::DescriptorMessage>(comm::asDelivered(m));
+    // PCM checks the own chain as the neighbours read it (both sides decide alike).
+    m = std::get<comm::DescriptorMessage>(comm::asDelivered(m));
+    for (auto& [robot, n] : neighbours)
+      for (const comm::Resemblance& r : m.resembles) judgeOwnRepeat(robot, n, r.keyframe, *description);
+    if (m.odometry) {
       const backend::Factor step = odometryFactor(self, keyframe.id, *m.odometry);
       own_chain.push_back(step);
       for (auto& [robot, n] : neighbours) {
@@ -305,6 +317,80 @@ struct RobotNode::Impl {
     }
     messenger.send(std::nullopt, std::move(m), now);
     count("descriptors_sent");
+  }
+
+  // ---- loops at repeated places -------------------------------------------
+  //
+  // A loop is made by the robot that arrives second at a place (it searches
+  // the first robot's descriptor, or the first its own index), and its
+  // distinctness test only knows both routes so far. Either robot may pass a
+  // place like it later: the robot that asked (it holds both descriptors)
+  // then tests the match again as a search over the whole route would have,
+  // and withdraws a loop whose match does not clearly beat the repeat, and
+  // tells the other robot, which withdraws it too.
+
+  /// The own new keyframe `later` resembles own keyframe `earlier`, far from it
+  /// on the route: the loops to `robot` asked at `earlier` are judged again.
+  void judgeOwnRepeat(core::RobotId robot, Neighbour& n, core::KeyframeId earlier,
+                      const place::PlaceDescriptor& later) {
+    for (auto it = n.asked.lower_bound({earlier, core::KeyframeId(0)});
+         it != n.asked.end() && it->first.first == earlier; ++it) {
+      const auto theirs = n.asked_descriptors.find(it->first.second);
+      if (theirs == n.asked_descriptors.end()) continue;
+      judgeRepeat(robot, n, it->first, it->second, descriptor->match(*theirs->second, later));
+    }
+  }
+
+  /// Neighbour `robot`'s new keyframe (described by `later`) resembles its
+  /// keyframe `earlier`, far from it on its route: the loops asked at
+  /// `earlier` are judged again.
+  void judgeTheirRepeat(core::RobotId robot, Neighbour& n, core::KeyframeId earlier,
+                        const place::PlaceDescriptor& later) {
+    for (const auto& [pair, distance] : n.asked) {
+      if (pair.second != earlier) continue;
+      const place::PlaceDescriptor& own = index.description(pair.first.value());
+      judgeRepeat(robot, n, pair, distance, descriptor->match(later, own));
+    }
+  }
+
+  /// Withdraws the loop asked as `pair` (own, theirs) with match distance
+  /// `distance` when a repeat of either place matches within
+  /// PlaceIndexConfig::distinct_ratio of it (`repeat`), and tells `robot`.
+  void judgeRepeat(core::RobotId robot, Neighbour& n,
+                   const std::pair<core::KeyframeId, core::KeyframeId>& pair, double distance,
+                   const place::Match& repeat) {
+    if (static_cast<double>(distance) < config.index.distinct_ratio * repeat.distance) {
+      spdlog::trace("robot {}: t {:.1f}: keeps the loop {}{} - {}{}: match {:.3f}, a repeat {:.3f}",
+                    core::robotName(self), now, core::robotName(self), pair.first.value(),
+                    core::robotName(robot), pair.second.value(), distance, repeat.distance);
+      return;
+    }
+    const core::PoseKey own{self, pair.first};
+    const core::PoseKey theirs{robot, pair.second};
+    if (!n.pcm.withdraw(robot < self ? backend::LoopId{theirs, own} : backend::LoopId{own, theirs}))
+      return;
+    comm::LoopMeasurement notice{pair.second, pair.first, comm::LoopStatus::repeated};
+    messenger.send(robot, notice, now);
+    count("inter_loops_withdrawn_repeated");
+    spdlog::debug("robot {}: t {:.1f}: withdraws the loop {}{} - {}{}: match {:.3f}, a repeat {:.3f}",
+                  core::robotName(self), now, core::robotName(self), pair.first.value(),
+                  core::robotName(robot), pair.second.value(), distance, repeat.distance);
+    decide(n);
+    forgetFrameIfUnlinked();
+  }
+
+  /// A notice from `from`: it withdrew loop (m.match of theirs, m.query of
+  /// this robot's), a repeated place's.
+  void onRepeated(core::RobotId from, const comm::LoopMeasurement& m) {
+    count("repeated_notices_received");
+    Neighbour& n = neighbour(from);
+    const core::PoseKey theirs{from, m.match};
+    const core::PoseKey mine{self, m.query};
+    if (!n.pcm.withdraw(from < self ? backend::LoopId{theirs, mine} : backend::LoopId{mine, theirs}))
+      return;
+    count("inter_loops_withdrawn_repeated");
+    decide(n);
+    forgetFrameIfUnlinked();
   }
 
   /// Where the own odometry puts an own keyframe (the place index's positions).
@@ -370,6 +456,7 @@ struct RobotNode::Impl {
       count("descriptors_undecodable");
       return;
     }
+    for (const comm::Resemblance& r : d.resembles) judgeTheirRepeat(from, n, r.keyframe, *theirs);
     const place::DistinctMatch found = index.queryDistinct(*theirs, ownPosition(), d.look_alike);
     if (found.refused) count("candidates_ambiguous");
     const std::optional<place::PlaceCandidate>& best = found.best;
@@ -380,17 +467,29 @@ struct RobotNode::Impl {
     // once the pair holds loops enough to be kept. Until then every match
     // is asked: robots that meet once, briefly, have only the few agreeing
     // loops of that one place to merge their maps on.
-    const auto near =
-        n.asked.lower_bound({core::KeyframeId(own.value() >= config.candidate_spacing
-                                                  ? own.value() - config.candidate_spacing + 1
-                                                  : 0),
-                             core::KeyframeId(0)});
     const bool established = n.accepted.size() >= config.pcm.min_loops;
-    if (established && near != n.asked.end() &&
-        near->first.value() < own.value() + config.candidate_spacing)
-      return count("candidates_skipped_nearby");
-    n.asked.emplace(own, d.keyframe);
+    if (established && askedNearby(n, own, d.keyframe)) return count("candidates_skipped_nearby");
+    n.asked.emplace(std::pair{own, d.keyframe}, static_cast<float>(best->match.distance));
+    n.asked_descriptors.emplace(d.keyframe, theirs);
     sendCandidate(from, own, d.keyframe, best->match);
+  }
+
+  /// Whether a candidate was sent for a pair of places a few keyframes from
+  /// (own, theirs) on both routes: the same two places. One that ties the own
+  /// place to another place of the neighbour's (a repeat of it, or the true
+  /// place where the first was an alias) is not nearby: PCM needs both to
+  /// choose between them.
+  [[nodiscard]] bool askedNearby(const Neighbour& n, core::KeyframeId own,
+                                 core::KeyframeId theirs) const {
+    const std::uint64_t spacing = config.candidate_spacing;
+    const std::uint64_t from = own.value() >= spacing ? own.value() - spacing + 1 : 0;
+    for (auto it = n.asked.lower_bound({core::KeyframeId(from), core::KeyframeId(0)});
+         it != n.asked.end() && it->first.first.value() < own.value() + spacing; ++it) {
+      const std::uint64_t other = it->first.second.value();
+      const std::uint64_t gap = other > theirs.value() ? other - theirs.value() : theirs.value() - other;
+      if (gap < 2 * spacing) return true;
+    }
+    return false;
   }
 
   /// Stage 2: the own keyframe's compact cloud to the robot owning the place.
@@ -456,6 +555,7 @@ struct RobotNode::Impl {
   /// Stage 3 received: the neighbour verified one of the own candidates.
   void onMeasurement(core::RobotId from, const comm::LoopMeasurement& m) {
     if (m.status == comm::LoopStatus::unexplained) return onUnexplained(from, m);
+    if (m.status == comm::LoopStatus::repeated) return onRepeated(from, m);
     count(m.status == comm::LoopStatus::verified ? "measurements_verified"
                                                  : "measurements_refused");
     if (m.status != comm::LoopStatus::verified) return;
@@ -694,6 +794,7 @@ struct RobotNode::Impl {
     last_round_capped = false;
     count(why);
     spdlog::debug("robot {}: t {:.1f}: leaves its round ({})", core::robotName(self), now, why);
+    forgetFrameIfUnlinked();
   }
 
   void onDgs(const backend::DgsMessage& m, const RoundOrigin& origin) {
@@ -901,6 +1002,7 @@ struct RobotNode::Impl {
                       core::robotName(self), now, withdrawn, core::robotName(partner),
                       round_number);
         decide(n);
+        forgetFrameIfUnlinked();
       }
     }
     constexpr std::size_t kRoundsKept = 8;
@@ -908,6 +1010,24 @@ struct RobotNode::Impl {
       n.own_unexplained.erase(n.own_unexplained.begin());
     while (n.their_unexplained.size() > kRoundsKept)
       n.their_unexplained.erase(n.their_unexplained.begin());
+  }
+
+  /// No loop to a neighbour is left (every one withdrawn) and no round is
+  /// running: nothing holds the own map in another robot's frame, or bent
+  /// towards a neighbour's, any more. The estimates go back to the own local
+  /// graph's, in the own frame, as if no round had placed them; a later loop
+  /// starts over from there.
+  void forgetFrameIfUnlinked() {
+    if (round || !loopNeighbours().empty() || (frame == self && optimised.empty())) return;
+    spdlog::debug("robot {}: t {:.1f}: no loop to a neighbour is left; back in its own frame",
+                  core::robotName(self), now);
+    optimised.clear();
+    anchors.clear();
+    anchored_loops.clear();
+    last_signature.clear();
+    last_round_capped = false;
+    frame = self;
+    count("frames_forgotten");
   }
 
   void finishRound(const PoseMap& estimates, bool capped = false) {
@@ -928,6 +1048,7 @@ struct RobotNode::Impl {
     finished.insert(round->number);
     round.reset();
     count("dgs_rounds");
+    forgetFrameIfUnlinked();  // its loops were withdrawn while it ran
   }
 
   // ---- alone ------------------------------------------------------------------

@@ -898,6 +898,23 @@ class Loops(unittest.TestCase):
         self.assertGreater(loops["recall"], 0.6)
         self.assertEqual(loops["withdrawn_correct"], 0)
 
+    def test_robots_running_live_keep_no_false_loop(self):
+        # Live, a robot matches a neighbour's place before either has passed
+        # the block's repeat: in this world, with the robots always in range
+        # (as `bench system` runs them), robots a and c held seven loops
+        # 144 m off, their only link, until the robot that asked for them
+        # judged them again when either robot passed the repeat.
+        config = os.path.join(self.tmp.name, "unlimited.yaml")
+        with open(config, "w") as f:
+            f.write("radio: {range: 0}\n")
+        _, stdout, _ = run("--config", config, "run", "--dataset", self.dataset, "--out",
+                           os.path.join(self.tmp.name, "run"), "--json")
+        robots = json.loads(stdout)["robots"]
+        for r in robots:
+            self.assertEqual(r["inter_loops_accepted_wrong"], 0, r["name"])
+        withdrawn = sum(r["counters"].get("inter_loops_withdrawn_repeated", 0) for r in robots)
+        self.assertGreater(withdrawn, 0)
+
     def test_every_candidate_is_graded_in_the_csv(self):
         with open(os.path.join(self.out, "loops.csv")) as f:
             rows = list(csv.DictReader(f))

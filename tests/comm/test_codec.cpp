@@ -71,7 +71,7 @@ const registration::VerificationResult& realVerification() {
 
 TEST(Codec, DescriptorRoundTripsAndDescribesTheSameOnReceipt) {
   const place::IrisDescriptor sent = place::describeIris(test::kittiScan(0));
-  DescriptorMessage m{keyframe(42), 12.5, place::encodeIris(sent), std::nullopt, 0.2734F};
+  DescriptorMessage m{keyframe(42), 12.5, place::encodeIris(sent), std::nullopt, 0.2734F, {}};
   m.odometry = OdometryStep{keyframe(41), test::kittiRelative(0, 5), realVerification().covariance};
   std::size_t bytes = 0;
   const DescriptorMessage got = roundTrip(header(1, std::nullopt), m, &bytes);
@@ -100,6 +100,31 @@ TEST(Codec, DescriptorRoundTripsAndDescribesTheSameOnReceipt) {
   EXPECT_FALSE(bare.look_alike);
   m.look_alike = 1.5F;
   EXPECT_THROW((void)encode({header(1, std::nullopt), m}), core::Error);
+}
+
+TEST(Codec, DescriptorCarriesThePlacesItResembles) {
+  DescriptorMessage m{keyframe(300), 90.0, {1, 2, 3, 4}, std::nullopt, 0.2F, {}};
+  m.resembles = {{keyframe(12), 0.2F}, {keyframe(13), 0.31F}, {keyframe(140), 0.0F}};
+  std::size_t with = 0;
+  const DescriptorMessage got = roundTrip(header(2, std::nullopt), m, &with);
+  ASSERT_EQ(got.resembles.size(), 3U);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(got.resembles[i].keyframe, m.resembles[i].keyframe);
+    EXPECT_NEAR(got.resembles[i].distance, m.resembles[i].distance, 1e-4F);
+  }
+  // What the receiver reads is what the sender keeps (asDelivered): both judge alike.
+  const auto delivered = std::get<DescriptorMessage>(asDelivered(m));
+  for (std::size_t i = 0; i < 3; ++i)
+    EXPECT_EQ(delivered.resembles[i].distance, got.resembles[i].distance);
+  // Three repeats cost a few bytes each: a keyframe varint and a 16-bit distance.
+  m.resembles.clear();
+  std::size_t without = 0;
+  (void)roundTrip(header(2, std::nullopt), m, &without);
+  EXPECT_LE(with, without + 3 * 6);
+  m.resembles.assign(kMaxResemblances + 1, {keyframe(1), 0.1F});
+  EXPECT_THROW((void)encode({header(2, std::nullopt), m}), core::Error);
+  m.resembles = {{keyframe(1), -0.1F}};
+  EXPECT_THROW((void)encode({header(2, std::nullopt), m}), core::Error);
 }
 
 TEST(Codec, LoopCandidateCarriesTheCompactCloud) {
@@ -168,6 +193,19 @@ TEST(Codec, AnUnexplainedLoopNoticeCarriesItsRound) {
   EXPECT_EQ(got.round, 1026u);
   m.status = LoopStatus::degenerate;  // an answer: no round on the wire
   EXPECT_EQ(roundTrip(header(1, 0), m).round, 0u);
+}
+
+TEST(Codec, ARepeatedPlaceNoticeNamesTheLoopAlone) {
+  LoopMeasurement m;
+  m.query = keyframe(12);
+  m.match = keyframe(107);
+  m.status = LoopStatus::repeated;
+  std::size_t bytes = 0;
+  const LoopMeasurement got = roundTrip(header(2, 0), m, &bytes);
+  EXPECT_EQ(got.status, LoopStatus::repeated);
+  EXPECT_EQ(got.query, m.query);
+  EXPECT_EQ(got.match, m.match);
+  EXPECT_LE(bytes, 24u);
 }
 
 TEST(Codec, SeparatorPosesAreUnder30BytesEachOnRealTrajectories) {
@@ -370,7 +408,7 @@ TEST(Codec, StateSummariesAndHeartbeatsRoundTrip) {
 
 TEST(Codec, EncodeRefusesWhatCannotGoOnTheWire) {
   EXPECT_THROW((void)encode({header(0, 1),
-                             DescriptorMessage{keyframe(1), 0.0, {}, std::nullopt, std::nullopt}}),
+                             DescriptorMessage{keyframe(1), 0.0, {}, std::nullopt, std::nullopt, {}}}),
                core::Error);
   LoopMeasurement bad;
   bad.T_match_query.translation().x() = std::nan("");
@@ -385,7 +423,7 @@ TEST(Codec, EncodeRefusesWhatCannotGoOnTheWire) {
       (void)encode(
           {header(0, 1),
            DescriptorMessage{
-               keyframe(std::uint64_t{1} << 57), 0.0, {1, 2, 3}, std::nullopt, std::nullopt}}),
+               keyframe(std::uint64_t{1} << 57), 0.0, {1, 2, 3}, std::nullopt, std::nullopt, {}}}),
       core::Error);
 }
 
@@ -517,7 +555,7 @@ std::vector<Message> samples() {
   return {
       {header(0, std::nullopt, 1), Heartbeat{1.0, 3, {{robot(1), 1, 2, 0}}}},
       {header(0, std::nullopt, 2),
-       DescriptorMessage{keyframe(3), 4.5, {9, 8, 7, 6, 5}, std::nullopt, std::nullopt}},
+       DescriptorMessage{keyframe(3), 4.5, {9, 8, 7, 6, 5}, std::nullopt, std::nullopt, {}}},
       {header(0, 1, 3), LoopCandidate{keyframe(3), keyframe(7), 0.5F, 0.2F, small_cloud}},
       {header(1, 0, 4), loop},
       {header(1, 0, 5), DgsState{2,

@@ -346,6 +346,15 @@ TEST_F(RealIndex, AQueryThatRepeatsOnItsOwnRouteIsAmbiguousToo) {
       querying.lookAlikeDistance(*kitti_[1], route(core::KeyframeId(101)), route, querying.size());
   ASSERT_TRUE(look_alike);
   EXPECT_FLOAT_EQ(*look_alike, iris_->match(*kitti_[1], *kitti_[0]).distance);
+  // Which keyframe it resembles, closest first: what the robot tells its
+  // neighbours, so that loops they hold at keyframe 100 are judged again.
+  const auto alikes =
+      querying.lookAlikes(*kitti_[1], route(core::KeyframeId(101)), route, querying.size());
+  ASSERT_FALSE(alikes.empty());
+  EXPECT_EQ(alikes.front().first, core::KeyframeId(100));
+  EXPECT_FLOAT_EQ(alikes.front().second, *look_alike);
+  for (std::size_t i = 1; i < alikes.size(); ++i)
+    EXPECT_LE(alikes[i - 1].second, alikes[i].second);
   // A revisit 5 m on is the same place, not a look-alike: only places far
   // off count, which look less alike.
   const std::optional<float> revisit = querying.lookAlikeDistance(

@@ -105,6 +105,14 @@ struct OdometryStep {
   core::Matrix6d covariance = core::Matrix6d::Identity();  ///< [rho; phi]
 };
 
+/// An earlier keyframe of the sender's, distinct_separation or more from the
+/// new one by its odometry, whose place the new one resembles.
+struct Resemblance {
+  core::KeyframeId keyframe;
+  float distance = 0.0F;  ///< the descriptor distance, [0, 1]; on the wire in 16 bits
+};
+inline constexpr std::size_t kMaxResemblances = 16;
+
 /// Stage 1.
 struct DescriptorMessage {
   core::KeyframeId keyframe;
@@ -115,6 +123,12 @@ struct DescriptorMessage {
   /// elsewhere on the sender's own route (place::PlaceIndex::lookAlikeDistance),
   /// in [0, 1]; none when the sender knows none. On the wire in 16 bits.
   std::optional<float> look_alike;
+  /// The sender's earlier keyframes this one is compared with for its
+  /// look-alike distance (far from it on its route), closest first, at most
+  /// kMaxResemblances: where its route may repeat a place. A robot that asked
+  /// for a loop at one of them judges it again against this keyframe
+  /// (RobotNode): a match that does not clearly beat the repeat was an alias.
+  std::vector<Resemblance> resembles;
 };
 
 /// Stage 2: the sender's keyframe `query` seems to be the receiver's `match`.
@@ -143,8 +157,13 @@ enum class LoopStatus : std::uint8_t {
   /// round is withdrawn by both.
   unexplained,
   symmetric,  ///< the query aligns as well turned half a turn (registration::RejectReason)
+  /// Not an answer but a notice about a loop both robots hold: the robot that
+  /// asked for it withdrew it, one of its places having turned out to repeat
+  /// on its robot's route as closely as the match (RobotNode). The receiver
+  /// withdraws it too.
+  repeated,
 };
-inline constexpr std::uint8_t kLoopStatuses = 10;
+inline constexpr std::uint8_t kLoopStatuses = 11;
 
 /// Stage 3: the answer to a LoopCandidate, sent back to the robot that asked.
 struct LoopMeasurement {

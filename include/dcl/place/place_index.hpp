@@ -138,6 +138,13 @@ class PlaceIndex {
                                                        const KeyframePosition& position,
                                                        std::size_t before) const;
 
+  /// The keyframes lookAlikeDistance compares `query` with, each with its
+  /// match distance, closest first: those among the nearest keys stored
+  /// before slot `before` that lie distinct_separation or more from `at`.
+  [[nodiscard]] std::vector<std::pair<core::KeyframeId, float>> lookAlikes(
+      const PlaceDescriptor& query, const Eigen::Vector3d& at, const KeyframePosition& position,
+      std::size_t before) const;
+
   /// Number of keyframes stored.
   [[nodiscard]] std::size_t size() const { return ids_.size(); }
   /// The robot whose keyframes these are.
