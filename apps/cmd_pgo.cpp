@@ -133,6 +133,15 @@ class WireMeter {
     add("refine_costs", wireBytes(from, std::nullopt, robot::toWire(m)));
   }
 
+  /// The priced lengths of a coarse step: a cost share's message carrying
+  /// one float32 more for every scale after the first.
+  void coarseCosts(core::RobotId from, int round, std::size_t scales) {
+    robot::RefineMessage m = refineMessage(from, std::nullopt, round);
+    m.cost_share = 1.0F;
+    add("refine_costs",
+        wireBytes(from, std::nullopt, robot::toWire(m)) + (scales - 1) * sizeof(float));
+  }
+
   void grid(core::RobotId from, core::RobotId to) {
     // Origin and cell size in float32, the three node counts as one-byte varints.
     add("refine_coarse", wireBytes(from, to, robot::toWire(refineMessage(from, to, 0))) + 16 + 3);
@@ -166,6 +175,9 @@ class WireMeter {
     t.cost = [this](core::RobotId f, int round, double share) { cost(f, round, share); };
     t.grid = [this](core::RobotId f, core::RobotId to, const backend::CoarseGrid&) { grid(f, to); };
     t.coarse = [this](int, const backend::CoarseShare& share) { coarse(share); };
+    t.coarse_costs = [this](core::RobotId f, int round, const auto& costs) {
+      coarseCosts(f, round, costs.size());
+    };
     return t;
   }
 

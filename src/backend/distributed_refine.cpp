@@ -71,6 +71,8 @@ void validate(const RefineConfig& config) {
               std::to_string(config.coarse_cells));
   require(nonNegative(config.coarse_refresh) && config.coarse_refresh < 1.0, "coarse_refresh",
           "must be in [0, 1), got " + std::to_string(config.coarse_refresh));
+  require(nonNegative(config.coarse_trust) && config.coarse_trust < 1.0, "coarse_trust",
+          "must be in [0, 1), got " + std::to_string(config.coarse_trust));
   require(nonNegative(config.separator_tolerance), "separator_tolerance",
           "must be finite and at least 0, got " + std::to_string(config.separator_tolerance));
 }
@@ -273,9 +275,9 @@ struct RefineAgent::Impl {
 
   /// The share at the current values; its blocks only when they moved by
   /// more than coarse_refresh since the ones last shared (or none were).
-  CoarseShare shareCoarse() {
+  CoarseShare shareCoarse(bool fresh) {
     CoarseShare share = coarseShare(true);
-    if (!blocks_shared.empty() &&
+    if (!fresh && !blocks_shared.empty() &&
         relativeChange(share.hessian, blocks_shared) <= config.coarse_refresh) {
       share.hessian.clear();
     } else {
@@ -303,6 +305,28 @@ struct RefineAgent::Impl {
       addToShare(share, r, columns, hessian);
     }
     return share;
+  }
+
+  /// A pose as the coarse step `step` moves it.
+  [[nodiscard]] Eigen::Isometry3d coarseMoved(const CoarseStep& step,
+                                              const core::PoseKey& key) const {
+    const Eigen::Isometry3d T = problem.pose(key);
+    return movable(key) ? applyCoarse(step, key.robot, grids.at(key.robot), T) : T;
+  }
+
+  [[nodiscard]] std::array<double, kCoarseScales.size()> coarseTrialCosts(
+      const CoarseStep& step) const {
+    std::array<double, kCoarseScales.size()> costs{};
+    for (std::size_t k = 0; k < costs.size(); ++k) {
+      const CoarseStep trial = scaled(step, kCoarseScales[k]);
+      for (const Factor& f : active) {
+        if (!owns(f)) continue;
+        const core::Vector6d r =
+            factorResidual(f, coarseMoved(trial, f.from), coarseMoved(trial, f.to));
+        costs[k] += r.dot(f.information * r);
+      }
+    }
+    return costs;
   }
 
   void receive(const PoseMap& poses) {
@@ -420,8 +444,13 @@ CoarseShare RefineAgent::coarseShare(bool hessian) const {
   return impl_->coarseShare(hessian);
 }
 
-CoarseShare RefineAgent::shareCoarse() {
-  return impl_->shareCoarse();
+CoarseShare RefineAgent::shareCoarse(bool fresh) {
+  return impl_->shareCoarse(fresh);
+}
+
+std::array<double, kCoarseScales.size()> RefineAgent::coarseTrialCosts(
+    const CoarseStep& step) const {
+  return impl_->coarseTrialCosts(step);
 }
 
 void RefineAgent::receive(const PoseMap& neighbour_poses) {
@@ -460,6 +489,7 @@ struct Run {
   PoseGraph& graph;
   RefineSummary& summary;
   const RefineTraffic& traffic;
+  const RefineConfig& config;
 };
 
 /// One round: every robot steps in id order, its separators delivered at once
@@ -488,16 +518,29 @@ double runRound(Agents& agents, Run& run, double momentum, const CoarseStep* coa
   return cost;
 }
 
-/// The group's coarse step at the kept round's estimates, from every robot's share.
-CoarseStep coarseStep(Agents& agents, Run& run, CoarseSolver& solver) {
+/// The group's coarse step at the kept round's estimates (whose cost is
+/// `cost`), from every robot's share, at the length the robots' priced costs
+/// choose; `refresh`: every robot sends fresh blocks, and is set for the next
+/// step when this one fell short of its model.
+CoarseStep coarseStep(Agents& agents, Run& run, CoarseSolver& solver, double cost, bool& refresh) {
   std::vector<CoarseShare> shares;
   for (auto& [robot, agent] : agents) {
-    shares.push_back(agent.shareCoarse());
+    shares.push_back(agent.shareCoarse(refresh));
     ++run.summary.coarse_shares;
     run.summary.coarse_blocks += shares.back().hessian.size();
     if (run.traffic.coarse) run.traffic.coarse(run.summary.rounds, shares.back());
   }
-  return solver.solve(shares);
+  if (refresh) ++run.summary.coarse_refreshes;
+  const CoarseStep step = solver.solve(shares);
+  std::array<double, kCoarseScales.size()> costs{};
+  for (auto& [robot, agent] : agents) {
+    const auto share = agent.coarseTrialCosts(step);
+    if (run.traffic.coarse_costs) run.traffic.coarse_costs(robot, run.summary.rounds, share);
+    for (std::size_t k = 0; k < costs.size(); ++k) costs[k] += share[k];
+  }
+  const CoarseChoice choice = coarseScale(step, cost, costs, run.config.coarse_trust);
+  refresh = choice.refresh;
+  return scaled(step, choice.scale);
 }
 
 /// Every robot's grid to each of its neighbours (robots holding the gauge have none).
@@ -625,15 +668,16 @@ RefineSummary refineDistributed(PoseGraph& graph, const RefineConfig& config,
   }
   shareGrids(agents, traffic);
   announceStart(agents, traffic);
-  Run run{graph, summary, traffic};
+  Run run{graph, summary, traffic, config};
   RefineSchedule schedule(config, summary.initial_cost);
   CoarseSolver solver;  // one for all: every robot's copy takes the same steps
   std::optional<CoarseStep> coarse;
+  bool refresh = false;  // the last coarse step fell short of its model
   while (!schedule.done()) {
     const double cost = runRound(agents, run, schedule.momentum(), coarse ? &*coarse : nullptr);
     const bool keep = schedule.endRound(cost, coarse.has_value());
     coarse.reset();
-    if (keep && config.coarse_cells > 0) coarse = coarseStep(agents, run, solver);
+    if (keep && config.coarse_cells > 0) coarse = coarseStep(agents, run, solver, cost, refresh);
     endRound(agents, graph, keep);
   }
   reanchor(graph, anchors);

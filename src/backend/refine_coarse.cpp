@@ -166,6 +166,27 @@ double relativeChange(const CoarseBlocks& now, const CoarseBlocks& before) {
   return norm > 0.0 ? std::sqrt(change / norm) : (change > 0.0 ? 1.0 : 0.0);
 }
 
+CoarseStep scaled(const CoarseStep& step, double scale) {
+  CoarseStep out = step;
+  for (auto& [node, motion] : out.motion) motion *= scale;
+  out.slope *= scale;
+  return out;
+}
+
+CoarseChoice coarseScale(const CoarseStep& step, double cost,
+                         const std::array<double, kCoarseScales.size()>& costs, double trust) {
+  CoarseChoice choice;
+  double best = cost;
+  for (std::size_t k = 0; k < costs.size(); ++k) {
+    if (costs[k] >= best) continue;
+    best = costs[k];
+    choice.scale = kCoarseScales[k];
+  }
+  const double predicted = -0.5 * step.slope;
+  choice.refresh = predicted > 0.0 && cost - best < trust * predicted;
+  return choice;
+}
+
 struct CoarseSolver::Impl {
   double damping;
   std::map<core::RobotId, CoarseBlocks> blocks;  // each robot's last sent
@@ -229,6 +250,7 @@ struct CoarseSolver::Impl {
     const Eigen::VectorXd x = ldlt.solve(-g);
     CoarseStep step;
     for (const auto& [node, first] : index) step.motion.emplace(node, x.segment<6>(first));
+    step.slope = 2.0 * g.dot(x);  // the chi-square is twice the least-squares cost
     return step;
   }
 };

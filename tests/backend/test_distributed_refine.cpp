@@ -98,6 +98,9 @@ TEST(RefineConfig, RejectsOutOfRangeFieldsByName) {
   c.block_tolerance = -1.0;
   EXPECT_NE(errorOf(c).find("block_tolerance"), std::string::npos) << errorOf(c);
   c = {};
+  c.coarse_trust = 1.0;
+  EXPECT_NE(errorOf(c).find("coarse_trust"), std::string::npos) << errorOf(c);
+  c = {};
   c.factorisation_reuse = -1;
   EXPECT_NE(errorOf(c).find("factorisation_reuse"), std::string::npos) << errorOf(c);
   PoseGraph graph = mapperExample(2);
@@ -183,6 +186,41 @@ TEST(DistributedRefine, DgsThenRefineReachesTheCentralizedOptimum) {
     EXPECT_GT(after_dgs / optimum, 1.01);  // DGS alone stops near the optimum, not at it
     EXPECT_LE(s.final_cost / optimum, 1.001) << robots << " robots";
   }
+}
+
+TEST(DistributedRefine, CoarseStepsPricedBeforeTakenReachManhattansOptimum) {
+  // manhattan in 9 robots: every robot's part criss-crosses the whole map, and
+  // coarse blocks a round old make the coarse step rise at every length.
+  PoseGraph start = splitIntoRobots(fromG2o(io::readG2o(dataPath("2d/manhattan.g2o"))), 9);
+  const double optimum = graphCost(centralizedOptimum(start));
+  (void)runDgs(start);
+  RefineConfig config;
+  config.max_rounds = 100;
+  PoseGraph priced = start;
+  const RefineSummary s = refineDistributed(priced, config);
+  EXPECT_GT(s.coarse_refreshes, 0u);
+  EXPECT_LE(s.final_cost / optimum, 1.01);
+  config.coarse_trust = 0.0;  // blocks refreshed only by their Frobenius change
+  PoseGraph stale = start;
+  const RefineSummary t = refineDistributed(stale, config);
+  EXPECT_EQ(t.coarse_refreshes, 0u);
+  EXPECT_GT(t.final_cost / optimum, 1.1);
+}
+
+TEST(CoarseScale, TakesTheCheapestLengthAndRefreshesAModelThatFellShort) {
+  CoarseStep step;
+  step.slope = -20.0;  // the model predicts a fall of 10
+  // Falls of 2, 9, 6 and -1 at 0.5, 1, 1.5, 2 times the step.
+  CoarseChoice c = coarseScale(step, 100.0, {98.0, 91.0, 94.0, 101.0}, 0.5);
+  EXPECT_DOUBLE_EQ(c.scale, 1.0);
+  EXPECT_FALSE(c.refresh);
+  c = coarseScale(step, 100.0, {99.0, 97.0, 102.0, 110.0}, 0.5);  // a fall of 3: short
+  EXPECT_DOUBLE_EQ(c.scale, 1.0);
+  EXPECT_TRUE(c.refresh);
+  c = coarseScale(step, 100.0, {101.0, 120.0, 150.0, 200.0}, 0.5);  // every length rises
+  EXPECT_DOUBLE_EQ(c.scale, 0.0);
+  EXPECT_TRUE(c.refresh);
+  EXPECT_FALSE(coarseScale(step, 100.0, {101.0, 120.0, 150.0, 200.0}, 0.0).refresh);
 }
 
 TEST(DistributedRefine, DistributedMapperExamplesReachTheCentralizedOptimum) {

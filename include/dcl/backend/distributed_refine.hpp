@@ -31,7 +31,12 @@
 /// step for all robots at once on a coarse grid per robot, from small shares
 /// every robot sends to the group. It moves what block steps move slowly (a
 /// correction spanning several robots) and takes long, thin graphs (KITTI,
-/// MIT, city10000) from hundreds of rounds to tens.
+/// MIT, city10000) from hundreds of rounds to tens. The coarse step is
+/// safeguarded like a line search: every robot prices it at a few lengths on
+/// its own factors (kCoarseScales, four numbers to the group), the group
+/// takes the cheapest that lowers the cost, and when even that falls short
+/// of the coarse model's prediction every robot sends fresh blocks (the
+/// blocks, refreshed only now and then, are what goes stale).
 ///
 /// No transport inside, as in dgs.hpp: a RefineAgent per robot takes in its
 /// neighbours' separator poses (RefineAgent::receive) and hands out its own
@@ -42,6 +47,7 @@
 /// graph's cost, the sum of one number per robot.
 
 #include <Eigen/Geometry>
+#include <array>
 #include <cstddef>
 #include <functional>
 #include <map>
@@ -84,14 +90,24 @@ struct RefineConfig {
   bool accelerate = true;
   /// Cells of a robot's coarse grid along the longest side of its part of the
   /// map (0: no coarse correction). Four: city10000 in 4 robots reaches 1.001
-  /// times its optimum in 9 rounds, eight in 6, at four times the shares' bytes.
-  int coarse_cells = 4;
+  /// times its optimum in 9 rounds, eight in 6, at four times the shares'
+  /// bytes. Eight: manhattan, whose robots each criss-cross the whole map,
+  /// needs it (four leaves 4 robots at 1.0021 after 500 rounds; eight ends at
+  /// 1.0004 after 276).
+  int coarse_cells = 8;
   /// A robot sends its coarse Gauss-Newton blocks again when they changed by
   /// more than this fraction (Frobenius) since it last sent them; otherwise
   /// its shares carry the gradient only. The blocks change with the
   /// linearisation point, a lot while rotations still move (MIT) and hardly
   /// once the cost settles.
   double coarse_refresh = 0.1;
+  /// Every robot sends fresh coarse blocks after a round whose coarse step,
+  /// at its best priced length, lowered the cost by less than this fraction
+  /// of what the coarse model predicted (0: only by coarse_refresh). A
+  /// Frobenius change of 1 % in the blocks can turn the step from a descent
+  /// into a rise of 50 % (manhattan in 9 robots): the change that matters is
+  /// in the blocks' weakest directions, which the norm does not see.
+  double coarse_trust = 0.5;
   /// A robot sends a separator pose only when it moved, from the value its
   /// neighbours already hold (their extrapolation and coarse step of it), by
   /// more than this fraction of the block's root-mean-square whitened
@@ -119,6 +135,8 @@ struct RefineConfig {
             "cells of a robot's coarse grid along its longest side (0: no coarse correction)");
     v.field("coarse_refresh", coarse_refresh,
             "send the coarse blocks again when they changed by this fraction");
+    v.field("coarse_trust", coarse_trust,
+            "send fresh coarse blocks when the step fell short of this fraction of its prediction");
     v.field(
         "separator_tolerance", separator_tolerance,
         "send a separator whose factors' residuals moved by this fraction of the block's (0: all)");
@@ -190,9 +208,14 @@ class RefineAgent {
   [[nodiscard]] CoarseShare coarseShare(bool hessian) const;
   /// The share to send after a kept round: the gradient, and the blocks when
   /// they changed by more than coarse_refresh (relative, Frobenius) since the
-  /// ones this agent last sent, or it sent none. The group's solvers keep
-  /// each robot's last blocks.
-  CoarseShare shareCoarse();
+  /// ones this agent last sent, it sent none, or `fresh` (the group's
+  /// coarseScale asked for them). The group's solvers keep each robot's last blocks.
+  CoarseShare shareCoarse(bool fresh = false);
+  /// This robot's share of the graph's cost (ownedCost) with its poses and
+  /// its copies of the neighbours' separators moved by `step` times each of
+  /// kCoarseScales: what the group needs to pick the step's length (coarseScale).
+  [[nodiscard]] std::array<double, kCoarseScales.size()> coarseTrialCosts(
+      const CoarseStep& step) const;
   /// Takes in neighbours' separator poses sent in this round; others are ignored.
   void receive(const std::map<core::PoseKey, Eigen::Isometry3d>& neighbour_poses);
   /// This round's block step: minimises the block's cost with the neighbours'
@@ -265,10 +288,11 @@ struct RefineSummary {
   std::vector<double> round_costs;   ///< the kept cost after each round, never increasing
   std::size_t separator_values = 0;  ///< separator poses sent, all robots and rounds
   std::map<core::RobotId, std::size_t> values_sent;  ///< separator poses sent, per robot
-  std::size_t coarse_shares = 0;  ///< coarse shares sent (one a robot and kept round)
-  std::size_t coarse_blocks = 0;  ///< Gauss-Newton blocks in them, all robots and rounds
-  double seconds = 0.0;           ///< wall time
-  bool converged = false;         ///< the rounds gained less than the tolerance before max_rounds
+  std::size_t coarse_shares = 0;     ///< coarse shares sent (one a robot and kept round)
+  std::size_t coarse_blocks = 0;     ///< Gauss-Newton blocks in them, all robots and rounds
+  std::size_t coarse_refreshes = 0;  ///< rounds after which every robot sent fresh blocks
+  double seconds = 0.0;              ///< wall time
+  bool converged = false;  ///< the rounds gained less than the tolerance before max_rounds
 };
 
 /// Everything the robots of refineDistributed hand each other, as they hand
@@ -285,6 +309,10 @@ struct RefineTraffic {
   std::function<void(core::RobotId from, core::RobotId to, const CoarseGrid& grid)> grid;
   /// A robot's coarse share after a kept round, to every member.
   std::function<void(int round, const CoarseShare& share)> coarse;
+  /// A robot's costs of the coarse step at kCoarseScales, to every member.
+  std::function<void(core::RobotId from, int round,
+                     const std::array<double, kCoarseScales.size()>& costs)>
+      coarse_costs;
 };
 
 /// Refines every estimate of `graph` in place by Gauss-Seidel block-coordinate

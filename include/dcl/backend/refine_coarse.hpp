@@ -30,6 +30,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <array>
 #include <cstddef>
 #include <map>
 #include <memory>
@@ -75,7 +76,34 @@ std::vector<CoarseWeight> coarseWeights(const CoarseGrid& grid, const Eigen::Vec
 /// The coarse unknowns' values: a motion [v; omega] about each node.
 struct CoarseStep {
   std::map<CoarseNode, core::Vector6d> motion;
+  /// The chi-square's first-order change along the step, 2 g^T x: the
+  /// Gauss-Newton model predicts a fall of half its magnitude.
+  double slope = 0.0;
 };
+
+/// `step` with every motion (and its slope) times `scale`.
+CoarseStep scaled(const CoarseStep& step, double scale);
+
+/// The scales of the coarse step every robot prices before the group takes
+/// one (coarseScale). The model's blocks may be rounds old, and a step that
+/// was right for them can overshoot or fall short; trying a few lengths costs
+/// each robot four numbers, not another round.
+inline constexpr std::array<double, 4> kCoarseScales{0.5, 1.0, 1.5, 2.0};
+
+/// The group's choice among the priced scales of a coarse step.
+struct CoarseChoice {
+  double scale = 0.0;    ///< of the step to take (0: none lowers the cost)
+  bool refresh = false;  ///< the model predicted badly: every robot sends fresh blocks next
+};
+
+/// Picks the scale of kCoarseScales whose cost (`costs`, the group's sum of
+/// RefineAgent::coarseTrialCosts) is lowest and below `cost`, the cost
+/// without the step. The model is refreshed when the fall it gives is less
+/// than `trust` times the fall the Gauss-Newton model predicts at scale 1:
+/// then the blocks, not the step's length, are wrong (a stale model's step
+/// on manhattan in 9 robots rises by 1 % to 50 % at every length).
+CoarseChoice coarseScale(const CoarseStep& step, double cost,
+                         const std::array<double, kCoarseScales.size()>& costs, double trust);
 
 /// `T_world_node` of robot `robot` (whose grid is `grid`) moved by `step`.
 Eigen::Isometry3d applyCoarse(const CoarseStep& step, core::RobotId robot, const CoarseGrid& grid,
