@@ -1,7 +1,9 @@
 // dataset.yaml is read with yaml-cpp directly: it holds a list of robots, which
 // the flat ConfigVisitor of config.hpp does not describe. Every error names the
 // file, the line (from YAML::Mark) and the dotted key.
+#include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <set>
@@ -20,6 +22,8 @@ namespace dcl::io {
 namespace {
 
 namespace fs = std::filesystem;
+
+constexpr std::size_t kMaxRobotName = 64;
 
 /// The fixed conventions: key, the only accepted value, and what it means.
 struct Convention {
@@ -188,8 +192,20 @@ ScanSourceSpec readScans(MapReader scans) {
 
 RobotSpec readRobot(MapReader robot) {
   RobotSpec out;
-  out.name = robot.string("name", robot.required("name"));
-  if (out.name.empty()) robot.fail(robot.mark(), robot.keyOf("name"), "must not be empty");
+  const YAML::Node name = robot.required("name");
+  out.name = robot.string("name", name);
+  if (out.name.empty()) robot.fail(name.Mark(), robot.keyOf("name"), "must not be empty");
+  // A robot's name is its output folder and file prefix: a path ("..",
+  // "../x", "/x") would write outside the output folder the user named.
+  const bool plain = out.name.size() <= kMaxRobotName &&
+                     std::all_of(out.name.begin(), out.name.end(), [](char c) {
+                       return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '_' || c == '-';
+                     });
+  if (!plain)
+    robot.fail(name.Mark(), robot.keyOf("name"),
+               fmt::format("'{}' is not a plain name: letters, digits, '_' and '-' only, at most "
+                           "{} characters (it names the robot's output folder)",
+                           out.name, kMaxRobotName));
   const YAML::Node scans = robot.required("scans");
   out.scans = readScans(robot.map("scans", scans));
   if (auto gt = robot.optional("ground_truth"))
