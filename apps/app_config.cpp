@@ -1,4 +1,5 @@
 #include "app_config.hpp"
+#include "commands.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -125,6 +126,11 @@ void validate(const AppConfig& config, const std::string& source) {
   checkField(source, "loop_check.threshold", [&] {
     if (!(config.loop_check.threshold > 0.0)) throw core::Error("must be positive");
   });
+}
+
+io::DatasetReadOptions& datasetReadOptions() {
+  static io::DatasetReadOptions options;
+  return options;
 }
 
 }  // namespace dcl::apps

@@ -106,7 +106,7 @@ std::set<std::string> robotsThatLeft(const std::string& run) {
 
 /// Every robot of the run in folder `run` of the dataset in folder `dataset`.
 std::vector<RobotGraph> readRun(const std::string& run, const std::string& dataset) {
-  const io::DatasetSpec spec = io::readDataset(dataset);
+  const io::DatasetSpec spec = io::readDataset(dataset, datasetReadOptions());
   std::vector<RobotGraph> robots;
   for (std::size_t i = 0; i < spec.robots.size(); ++i) {
     if (!std::filesystem::exists(run + "/" + spec.robots[i].name + "/graph.g2o")) {

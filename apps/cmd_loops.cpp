@@ -335,7 +335,7 @@ void writeCsv(const std::string& path, const std::vector<Robot>& robots,
 }
 
 void runLoops(const LoopsOptions& o, const AppConfig& config) {
-  const io::DatasetSpec spec = io::readDataset(o.dataset);
+  const io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   if (spec.robots.size() < 2)
     throw core::Error("dataset '" + o.dataset + "' has one robot: inter-robot loops need two");
   std::shared_ptr<const sim::SimWorld> world;

@@ -60,7 +60,7 @@ struct RobotData {
 };
 
 RobotData openRobot(const std::string& dataset, const std::string& robot) {
-  RobotData data{io::readDataset(dataset), 0, nullptr, std::nullopt};
+  RobotData data{io::readDataset(dataset, datasetReadOptions()), 0, nullptr, std::nullopt};
   if (!robot.empty()) {
     const auto index = data.spec.robotIndex(robot);
     if (!index) throw core::Error("dataset '" + dataset + "' has no robot '" + robot + "'");

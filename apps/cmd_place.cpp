@@ -290,7 +290,7 @@ void printSummary(const Json& m) {
 
 void runBenchPlace(const PlaceOptions& o, const PlaceSection& section) {
   if (o.every == 0) throw core::Error("--every must be at least 1");
-  const io::DatasetSpec spec = io::readDataset(o.dataset);
+  const io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   place::DescriptorConfig config = section.descriptor;
   const auto kind = place::parseDescriptorKind(o.descriptor);
   if (!kind) throw core::Error("unknown descriptor '" + o.descriptor + "' (iris or scancontext)");

@@ -316,7 +316,7 @@ void printSummary(const RobotReport& r, const std::string& folder) {
 void runRobot(const RobotOptions& o, const AppConfig& config) {
   validate(o);
   const StopSignals signals;
-  io::DatasetSpec spec = io::readDataset(o.dataset);
+  io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const std::size_t index = robotIndex(spec, o.robot);
   if (index > 254) throw core::Error("a swarm holds robots 0..254: '" + o.robot + "' is past it");
   RobotPlayer player(o, std::move(spec), index, robotConfig(config));

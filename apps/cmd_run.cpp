@@ -332,7 +332,7 @@ Json runSwarmDataset(const std::string& dataset, const std::string& out, std::si
                      int threads, double settle, const AppConfig& config,
                      const std::vector<std::string>& leave) {
   const RunOptions o{dataset, out, max_frames, threads, settle, leave, false};
-  const io::DatasetSpec spec = io::readDataset(o.dataset);
+  const io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const std::map<std::string, double> leave_times = parseLeaves(o.leave, spec);
   std::vector<swarm::SwarmMember> members = membersOf(spec, leave_times);
   std::vector<core::Trajectory> truths;

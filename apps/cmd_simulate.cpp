@@ -147,7 +147,7 @@ void runSimulate(const SimulateOptions& o) {
 }
 
 void runPreview(const std::string& folder) {
-  const io::DatasetSpec spec = io::readDataset(folder);
+  const io::DatasetSpec spec = io::readDataset(folder, datasetReadOptions());
   const sim::SimWorld world(spec);
   const std::string world_png = (fs::path(folder) / "preview_world.png").string();
   const std::string scan_png = (fs::path(folder) / "preview_scan.png").string();
@@ -225,7 +225,7 @@ std::vector<std::size_t> benchRobots(const io::DatasetSpec& spec, const std::str
 
 void runBenchSim(const BenchSimOptions& o) {
   if (o.threads == 0) throw core::Error("--threads must be at least 1");
-  const io::DatasetSpec spec = io::readDataset(o.dataset);
+  const io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const auto robots = benchRobots(spec, o.robot);
   auto start = Clock::now();
   const sim::SimWorld world(spec, {.parallel = false});  // one scan per thread

@@ -204,6 +204,7 @@ std::vector<std::string> robotArgs(const std::string& exe, const GlobalOptions& 
   std::vector<std::string> args{exe};
   if (!g.config.empty()) args.insert(args.end(), {"--config", g.config});
   if (!g.log_level.empty()) args.insert(args.end(), {"--log-level", g.log_level});
+  if (datasetReadOptions().allow_outside_paths) args.emplace_back("--allow-outside-paths");
   args.insert(args.end(), {"robot",
                            "--dataset",
                            o.dataset,
@@ -452,7 +453,7 @@ void printTable(const Json& m, const std::string& out) {
 
 void runSwarmProcesses(const SwarmOptions& o, const GlobalOptions& g) {
   validate(o);
-  const io::DatasetSpec spec = io::readDataset(o.dataset);
+  const io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const std::vector<std::size_t> robots = selectRobots(spec, o.robots);
   const std::optional<double> end = expectedEnd(spec, robots, o);
   const std::string exe = std::filesystem::read_symlink("/proc/self/exe").string();

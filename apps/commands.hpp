@@ -5,9 +5,15 @@
 
 #include <CLI/CLI.hpp>
 
+#include <dcl/io/dataset.hpp>
+
 #include "app_config.hpp"
 
 namespace dcl::apps {
+
+/// What a dataset may name, for every command of this process: set once from
+/// `--allow-outside-paths` before the commands run.
+io::DatasetReadOptions& datasetReadOptions();
 
 /// `eval ate`, `eval rpe`: trajectory metrics, evo-compatible.
 void addEvalCommand(CLI::App& app, const AppConfig& config);

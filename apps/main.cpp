@@ -35,6 +35,9 @@ dcl::apps::AppConfig preloadConfig(int argc, char** argv) {
     dcl::io::applyYaml(dcl::io::readConfigText(*path), config, *path);
   }
   if (const auto level = findOption(argc, argv, "--log-level")) config.log_level = *level;
+  for (int i = 1; i < argc; ++i)
+    if (std::string_view(argv[i]) == "--allow-outside-paths")
+      dcl::apps::datasetReadOptions().allow_outside_paths = true;
   dcl::apps::validate(config, findOption(argc, argv, "--config").value_or("<defaults>"));
   dcl::core::setupLogging(config.log_level);
   return config;
@@ -49,6 +52,10 @@ int run(int argc, char** argv) {
   app.add_option("--config", config_path, "YAML configuration file (see `config --dump`)");
   std::string log_level = config.log_level;
   app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off");
+  bool outside = false;
+  app.add_flag("--allow-outside-paths", outside,
+               "let datasets name ground truth and scans outside their own folder "
+               "(absolute paths, or paths climbing out of it)");
   dcl::apps::addEvalCommand(app, config);
   dcl::apps::addConvertCommand(app);
   dcl::apps::addConfigCommand(app, config);

@@ -165,32 +165,51 @@ SimSpec readSim(MapReader sim) {
   return out;
 }
 
+/// Checks that the path in field `key` (at `node`) stays inside the dataset
+/// folder: relative, and not climbing out of it, unless `options` allow it.
+void checkInside(const MapReader& reader, const std::string& key, const YAML::Node& node,
+                 const std::string& path, const DatasetReadOptions& options) {
+  if (options.allow_outside_paths) return;
+  const fs::path p = fs::path(path).lexically_normal();
+  const bool climbs = !p.empty() && *p.begin() == "..";
+  if (p.is_absolute() || p.has_root_name() || p.has_root_directory() || climbs)
+    reader.fail(node.Mark(), reader.keyOf(key),
+                fmt::format("'{}' is outside the dataset folder (give paths relative to it, or "
+                            "pass --allow-outside-paths to read files elsewhere)",
+                            path));
+}
+
 /// A string field the scan source type `type` needs.
-std::string requiredPath(MapReader& scans, const std::string& key, std::string_view type) {
+std::string requiredPath(MapReader& scans, const std::string& key, std::string_view type,
+                         const DatasetReadOptions& options) {
   const auto node = scans.optional(key);
   if (!node)
     scans.fail(scans.mark(), scans.keyOf(key), fmt::format("missing (a {} source needs it)", type));
-  return scans.string(key, *node);
+  std::string path = scans.string(key, *node);
+  checkInside(scans, key, *node, path, options);
+  return path;
 }
 
-ScanSourceSpec readScans(MapReader scans) {
+ScanSourceSpec readScans(MapReader scans, const DatasetReadOptions& options) {
   ScanSourceSpec out;
   const YAML::Node type = scans.required("type");
   const auto parsed = parseScanSourceType(scans.string("type", type));
   if (!parsed) scans.fail(type.Mark(), scans.keyOf("type"), "expected sim, kitti or bag");
   out.type = *parsed;
   if (out.type == ScanSourceType::kitti) {
-    out.folder = requiredPath(scans, "folder", "kitti");
-    out.times = requiredPath(scans, "times", "kitti");
+    out.folder = requiredPath(scans, "folder", "kitti", options);
+    out.times = requiredPath(scans, "times", "kitti", options);
   } else if (out.type == ScanSourceType::bag) {
-    out.file = requiredPath(scans, "file", "bag");
-    out.topic = requiredPath(scans, "topic", "bag");
+    out.file = requiredPath(scans, "file", "bag", options);
+    const auto topic = scans.optional("topic");
+    if (!topic) scans.fail(scans.mark(), scans.keyOf("topic"), "missing (a bag source needs it)");
+    out.topic = scans.string("topic", *topic);
   }
   scans.finish();
   return out;
 }
 
-RobotSpec readRobot(MapReader robot) {
+RobotSpec readRobot(MapReader robot, const DatasetReadOptions& options) {
   RobotSpec out;
   const YAML::Node name = robot.required("name");
   out.name = robot.string("name", name);
@@ -207,22 +226,25 @@ RobotSpec readRobot(MapReader robot) {
                            "{} characters (it names the robot's output folder)",
                            out.name, kMaxRobotName));
   const YAML::Node scans = robot.required("scans");
-  out.scans = readScans(robot.map("scans", scans));
-  if (auto gt = robot.optional("ground_truth"))
+  out.scans = readScans(robot.map("scans", scans), options);
+  if (auto gt = robot.optional("ground_truth")) {
     out.ground_truth = robot.string("ground_truth", *gt);
+    checkInside(robot, "ground_truth", *gt, out.ground_truth, options);
+  }
   if (auto t = robot.optional("start_time")) out.start_time = robot.number("start_time", *t);
   robot.finish();
   return out;
 }
 
-void readRobots(const MapReader& top, const YAML::Node& list, DatasetSpec& spec) {
+void readRobots(const MapReader& top, const YAML::Node& list, DatasetSpec& spec,
+                const DatasetReadOptions& options) {
   if (!list.IsSequence() || list.size() == 0) {
     top.fail(list.Mark(), "robots", "expected a non-empty sequence of robots");
   }
   std::set<std::string> names;
   for (std::size_t i = 0; i < list.size(); ++i) {
     const std::string key = fmt::format("robots[{}]", i);
-    spec.robots.push_back(readRobot(top.map(key, list[i])));
+    spec.robots.push_back(readRobot(top.map(key, list[i]), options));
     if (!names.insert(spec.robots.back().name).second) {
       top.fail(list[i].Mark(), key + ".name",
                "duplicate robot name '" + spec.robots.back().name + "'");
@@ -230,7 +252,7 @@ void readRobots(const MapReader& top, const YAML::Node& list, DatasetSpec& spec)
   }
 }
 
-void readTop(MapReader top, DatasetSpec& spec) {
+void readTop(MapReader top, DatasetSpec& spec, const DatasetReadOptions& options) {
   const YAML::Node version = top.required("format_version");
   spec.format_version = top.integer<int>("format_version", version);
   if (spec.format_version != kDatasetFormatVersion) {
@@ -244,7 +266,7 @@ void readTop(MapReader top, DatasetSpec& spec) {
   readSensor(top.map("sensor", sensor), spec);
   if (auto c = top.optional("conventions")) readConventions(top.map("conventions", *c));
   if (auto s = top.optional("sim")) spec.sim = readSim(top.map("sim", *s));
-  readRobots(top, top.required("robots"), spec);
+  readRobots(top, top.required("robots"), spec, options);
   top.finish();
 }
 
@@ -362,13 +384,13 @@ std::optional<std::size_t> DatasetSpec::robotIndex(std::string_view robot_name) 
   return std::nullopt;
 }
 
-DatasetSpec readDataset(const std::string& path) {
+DatasetSpec readDataset(const std::string& path, const DatasetReadOptions& options) {
   const bool is_folder = fs::is_directory(path);
   const std::string file = is_folder ? (fs::path(path) / kDatasetFileName).string() : path;
   const YAML::Node root = parseYaml(file);
   if (!root.IsMap()) throw core::FileError({file}, "expected a mapping of dataset keys");
   DatasetSpec spec;
-  readTop(MapReader(file, "", root, root.Mark()), spec);
+  readTop(MapReader(file, "", root, root.Mark()), spec, options);
   spec.folder = fs::path(file).parent_path().string();
   return spec;
 }

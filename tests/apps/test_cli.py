@@ -608,6 +608,34 @@ class Simulate(unittest.TestCase):
         return run("simulate", "--preset", "demo", "--robots", "1", "--max-scans", "4",
                    "--out", out, *extra)
 
+    def test_a_dataset_reads_nothing_outside_its_folder_unless_allowed(self):
+        self.simulate_short(self.path("ds"))
+        yaml_path = self.path("ds", "dataset.yaml")
+        with open(yaml_path) as f:
+            text = f.read()
+        secret = self.path("secret.tum")
+        shutil.copy(self.path("ds", "ground_truth", "a.tum"), secret)
+        for name, edited in (
+                ("climbing out", text.replace("ground_truth/a.tum", "../secret.tum")),
+                ("absolute", text.replace("ground_truth/a.tum", secret)),
+                ("robot name a path", text.replace("name: a\n", "name: ../../evil\n"))):
+            with self.subTest(name):
+                with open(yaml_path, "w") as f:
+                    f.write(edited)
+                out = self.path("out-" + name.replace(" ", "-"))
+                code, _, err = run("run", "--dataset", self.path("ds"), "--out", out, check=False)
+                self.assertEqual(code, 1)
+                self.assertIn(yaml_path, err)
+                self.assertIn("robots[0]", err)
+                self.assertFalse(os.path.exists(out))
+                self.assertFalse(os.path.exists(self.path("evil")))
+        # The user may allow it explicitly, for data kept elsewhere.
+        with open(yaml_path, "w") as f:
+            f.write(text.replace("ground_truth/a.tum", secret))
+        run("--allow-outside-paths", "run", "--dataset", self.path("ds"), "--out",
+            self.path("allowed"))
+        self.assertTrue(os.path.exists(self.path("allowed", "a", "trajectory.tum")))
+
     def test_demo_dataset_is_kilobytes_without_scans(self):
         _, out, _ = run("simulate", "--preset", "demo", "--out", self.path("demo"))
         files = self.folder_files(self.path("demo"))

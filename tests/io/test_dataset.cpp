@@ -183,6 +183,19 @@ TEST(Dataset, RejectsBrokenFilesNamingLineAndKey) {
        {":7:", "field 'robots[0].name'", "at most 64 characters"}},
       {"robot name empty", edited("- name: a\n", "- name: \"\"\n"),
        {":7:", "field 'robots[0].name'", "must not be empty"}},
+      {"ground truth climbing out", edited("ground_truth: a.tum", "ground_truth: ../../etc/passwd"),
+       {":8:", "field 'robots[0].ground_truth'", "'../../etc/passwd' is outside the dataset folder",
+        "--allow-outside-paths"}},
+      {"ground truth absolute", edited("ground_truth: a.tum", "ground_truth: /etc/passwd"),
+       {":8:", "field 'robots[0].ground_truth'", "outside the dataset folder"}},
+      {"scans climbing out after a detour", edited("folder: a/velodyne", "folder: a/../../b"),
+       {":11:", "field 'robots[0].scans.folder'", "outside the dataset folder"}},
+      {"times absolute", edited("times: a/times.txt", "times: /data/times.txt"),
+       {":12:", "field 'robots[0].scans.times'", "outside the dataset folder"}},
+      {"bag climbing out",
+       edited("type: kitti\n      folder: a/velodyne\n      times: a/times.txt",
+              "type: bag\n      file: ../x.bag\n      topic: /points"),
+       {":11:", "field 'robots[0].scans.file'", "outside the dataset folder"}},
       {"sim seed",
        edited("robots:\n", "sim:\n  world: city\n  seed: -1\nrobots:\n"),
        {":8:", "field 'sim.seed'", "integer"}},
@@ -203,6 +216,24 @@ TEST(Dataset, RejectsBrokenFilesNamingLineAndKey) {
     EXPECT_TRUE(contains(message, path));
     for (const auto& part : c.message) EXPECT_TRUE(contains(message, part));
   }
+}
+
+TEST(Dataset, PathsOutsideItsFolderOnlyWhenAllowed) {
+  test::TempDir dir;
+  const std::string path =
+      dir.write("dataset.yaml", edited("folder: a/velodyne", "folder: /data/kitti/00/velodyne")
+                                    .replace(std::string(kGood).find("ground_truth: a.tum"),
+                                             std::string("ground_truth: a.tum").size(),
+                                             "ground_truth: ../poses/00.tum"));
+  EXPECT_THROW((void)readDataset(path), core::FileError);
+  const DatasetSpec spec = readDataset(path, {.allow_outside_paths = true});
+  EXPECT_EQ(spec.robots[0].scans.folder, "/data/kitti/00/velodyne");
+  EXPECT_EQ(spec.resolve(spec.robots[0].scans.folder), "/data/kitti/00/velodyne");
+  EXPECT_EQ(spec.robots[0].ground_truth, "../poses/00.tum");
+  // Inside, a path may wander as long as it stays in: a/./b/../velodyne.
+  const std::string inside =
+      dir.write("dataset.yaml", edited("folder: a/velodyne", "folder: a/./b/../velodyne"));
+  EXPECT_EQ(readDataset(inside).robots[0].scans.folder, "a/./b/../velodyne");
 }
 
 TEST(Dataset, MissingFileIsNamed) {

@@ -109,12 +109,22 @@ struct DatasetSpec {
   [[nodiscard]] std::optional<std::size_t> robotIndex(std::string_view name) const;
 };
 
+/// How much of the file system a dataset may name.
+struct DatasetReadOptions {
+  /// Ground-truth and scan paths may be absolute or climb out of the dataset
+  /// folder. Off by default: a dataset from elsewhere reads nothing outside
+  /// its own folder (`--allow-outside-paths` on the command line).
+  bool allow_outside_paths = false;
+};
+
 /// Reads a dataset: `path` is the dataset folder or its dataset.yaml. Throws
 /// core::FileError naming the file, the line and the key for malformed YAML,
 /// missing or unknown keys, values of the wrong type, an unsupported format
-/// version, conventions other than the ones above, a duplicate robot name, or a
-/// robot whose scan source lacks the fields its type needs.
-DatasetSpec readDataset(const std::string& path);
+/// version, conventions other than the ones above, a duplicate robot name, a
+/// robot name that is not a plain name, a path outside the dataset folder
+/// (unless `options` allow it), or a robot whose scan source lacks the
+/// fields its type needs.
+DatasetSpec readDataset(const std::string& path, const DatasetReadOptions& options = {});
 
 /// The dataset.yaml text of `spec`, with comments explaining the conventions.
 std::string datasetYaml(const DatasetSpec& spec);
