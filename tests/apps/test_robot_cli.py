@@ -76,6 +76,15 @@ class Robot(unittest.TestCase):
         code, _, err = self.robot("--dataset", self.dataset, "--robot", "a", "--rate", "0")
         self.assertOneLineError(code, err, "--rate")
 
+    def test_a_clock_a_day_or_more_from_the_data_is_refused(self):
+        # Epoch 1 (1970) put the swarm clock 56 years past the data: every
+        # scan due at once, memory growing until the allocation failed.
+        for args, named in ((["--epoch", "1"], "--epoch 1"), (["--rate", "1e9"], "--rate"),
+                            (["--epoch", str(time.time() + 3 * 86400)], "before its data")):
+            with self.subTest(args=args):
+                code, _, err = self.robot("--dataset", self.dataset, "--robot", "a", *args)
+                self.assertOneLineError(code, err, named)
+
     def test_sigterm_stops_it_with_whole_outputs(self):
         out = os.path.join(self.tmp.name, "stopped")
         proc = subprocess.Popen(
