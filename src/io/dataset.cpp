@@ -24,6 +24,7 @@ namespace {
 namespace fs = std::filesystem;
 
 constexpr std::size_t kMaxRobotName = 64;
+constexpr double kMostStartTime = 86400.0;  ///< s, a day
 
 /// The fixed conventions: key, the only accepted value, and what it means.
 struct Convention {
@@ -231,7 +232,15 @@ RobotSpec readRobot(MapReader robot, const DatasetReadOptions& options) {
     out.ground_truth = robot.string("ground_truth", *gt);
     checkInside(robot, "ground_truth", *gt, out.ground_truth, options);
   }
-  if (auto t = robot.optional("start_time")) out.start_time = robot.number("start_time", *t);
+  if (auto t = robot.optional("start_time")) {
+    out.start_time = robot.number("start_time", *t);
+    // Seconds on the swarm clock, not a Unix time: a run would wait that long.
+    if (std::abs(out.start_time) > kMostStartTime)
+      robot.fail(t->Mark(), robot.keyOf("start_time"),
+                 fmt::format("{:g} s is more than a day from the swarm clock's zero (it is "
+                             "seconds on the swarm clock, not a Unix time)",
+                             out.start_time));
+  }
   robot.finish();
   return out;
 }

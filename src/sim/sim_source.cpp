@@ -30,6 +30,11 @@ const io::SimSpec& requireSim(const io::DatasetSpec& spec) {
   return *spec.sim;
 }
 
+/// m: how far from the origin a simulated route may go (KITTI's longest
+/// sequences span about 1 km).
+constexpr double kMostWorldHalfWidth = 10000.0;
+constexpr double kMostWorldHeight = 1000.0;
+
 std::vector<core::Trajectory> readAllGroundTruth(const io::DatasetSpec& spec) {
   std::vector<core::Trajectory> out;
   for (std::size_t r = 0; r < spec.robots.size(); ++r) {
@@ -37,6 +42,21 @@ std::vector<core::Trajectory> readAllGroundTruth(const io::DatasetSpec& spec) {
     if (!out.back().isSorted()) {
       throw core::Error(fmt::format("dataset '{}': robot '{}': ground-truth stamps decrease",
                                     spec.name, spec.robots[r].name));
+    }
+    // The world is built over the routes' extent: a pose kilometres off
+    // (a typo, or a file in another frame) would build a world without end.
+    const core::Trajectory& t = out.back();
+    for (std::size_t i = 0; i < t.size(); ++i) {
+      const Eigen::Vector3d at = t.pose(i).translation();
+      if (at.head<2>().cwiseAbs().maxCoeff() > kMostWorldHalfWidth ||
+          std::abs(at.z()) > kMostWorldHeight)
+        throw core::Error(fmt::format(
+            "dataset '{}': robot '{}': ground-truth pose {} of {} (t = {} s) at ({:.1f}, {:.1f}, "
+            "{:.1f}) m is outside the {} x {} km a simulated world spans around the origin "
+            "(height within {} m)",
+            spec.name, spec.robots[r].name, i + 1, spec.resolve(spec.robots[r].ground_truth),
+            t.stamp(i), at.x(), at.y(), at.z(), 2 * kMostWorldHalfWidth / 1000.0,
+            2 * kMostWorldHalfWidth / 1000.0, kMostWorldHeight));
     }
   }
   return out;

@@ -245,5 +245,24 @@ TEST_F(SimSourceTest, OpensFileRobotsThroughIoAndRefusesNonSimDatasets) {
   EXPECT_THROW((void)openRobotScans(spec, 0), core::FileError);  // went to io's KITTI reader
 }
 
+TEST_F(SimSourceTest, RefusesAGroundTruthPoseFarOutsideAnyWorld) {
+  // One pose 1000 km out (a typo, a file in another frame): the world over
+  // the routes' extent would be built without end.
+  const io::DatasetSpec spec = write(test::tinyPreset());
+  const std::string file = spec.resolve(spec.robots[0].ground_truth);
+  core::Trajectory route = io::readTumPoses(file);
+  route.pose(2).translation().x() = 1e6;
+  io::writeTumPoses(file, route);
+  try {
+    SimWorld world(spec);
+    FAIL() << "a world was built";
+  } catch (const core::Error& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("robot 'a'"), std::string::npos) << message;
+    EXPECT_NE(message.find("pose 3 of " + file), std::string::npos) << message;
+    EXPECT_NE(message.find("1000000.0"), std::string::npos) << message;
+  }
+}
+
 }  // namespace
 }  // namespace dcl::sim
