@@ -1,5 +1,4 @@
 #include "app_config.hpp"
-#include "commands.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -11,6 +10,8 @@
 #include <dcl/core/log.hpp>
 #include <dcl/eval/alignment.hpp>
 #include <dcl/eval/rpe.hpp>
+
+#include "commands.hpp"
 
 namespace dcl::apps {
 

@@ -222,8 +222,9 @@ struct PingRun {
 
   void sendDue(double now) {
     for (; next < options.messages && due(next) <= now; ++next) {
-      comm::DescriptorMessage m{core::KeyframeId(next), now, payload(self, next, options.messages),
-                                std::nullopt, std::nullopt, {}};
+      comm::DescriptorMessage m{
+          core::KeyframeId(next), now,          payload(self, next, options.messages),
+          std::nullopt,           std::nullopt, {}};
       messenger.send(std::nullopt, std::move(m), now);
     }
   }

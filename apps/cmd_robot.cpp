@@ -143,8 +143,8 @@ void validate(const RobotOptions& o) {
   // A swarm clock far from its data would play a day of scans at once, or
   // wait a day for the first: both are a mistyped epoch or rate.
   if (o.rate > kMostRate)
-    throw core::Error(fmt::format("--rate {:g} is beyond {:g} swarm seconds per wall second",
-                                  o.rate, kMostRate));
+    throw core::Error(
+        fmt::format("--rate {:g} is beyond {:g} swarm seconds per wall second", o.rate, kMostRate));
   if (o.epoch > 0.0) {
     const double away = (unixNow() - o.epoch) * o.rate;
     if (std::abs(away) > kMostClockOffset)

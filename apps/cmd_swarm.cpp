@@ -76,7 +76,8 @@ void validate(const SwarmOptions& o) {
   if (!(o.rate > 0.0) || !std::isfinite(o.rate))
     throw core::Error("--rate must be a finite number > 0");
   if (o.rate > 1000.0)  // the robots' own bound (cmd_robot.cpp)
-    throw core::Error(fmt::format("--rate {:g} is beyond 1000 swarm seconds per wall second", o.rate));
+    throw core::Error(
+        fmt::format("--rate {:g} is beyond 1000 swarm seconds per wall second", o.rate));
   if (!(o.linger >= 0.0) || !std::isfinite(o.linger))
     throw core::Error("--linger must be a finite number >= 0");
   if (!(o.start_delay >= 0.0) || !std::isfinite(o.start_delay))

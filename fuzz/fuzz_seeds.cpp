@@ -58,8 +58,11 @@ std::vector<comm::Body> bodies(const std::vector<std::uint8_t>& descriptor,
   comm::RotationEstimates rotations{state, {{KeyframeId(5), T.rotation()}}};
   return {
       comm::Heartbeat{2.5, 40, {{RobotId(0), 1, 12, 3}}},
-      comm::DescriptorMessage{KeyframeId(4), 3.0, descriptor,
-                              comm::OdometryStep{KeyframeId(3), T, loop.covariance}, 0.27F,
+      comm::DescriptorMessage{KeyframeId(4),
+                              3.0,
+                              descriptor,
+                              comm::OdometryStep{KeyframeId(3), T, loop.covariance},
+                              0.27F,
                               {{KeyframeId(1), 0.27F}, {KeyframeId(2), 0.3F}}},
       comm::LoopCandidate{KeyframeId(4), KeyframeId(90), 1.2F, 0.18F, cloud},
       loop,

@@ -429,9 +429,12 @@ Heartbeat bodyIn(const wire::Heartbeat& w) {
 }
 
 DescriptorMessage bodyIn(const wire::Descriptor& w) {
-  DescriptorMessage m{
-      keyframeIn(w.keyframe(), "descriptor"), finiteIn(w.stamp(), "descriptor stamp"),
-      payloadIn(w.descriptor(), kMaxDescriptorBytes, "descriptor"), std::nullopt, std::nullopt, {}};
+  DescriptorMessage m{keyframeIn(w.keyframe(), "descriptor"),
+                      finiteIn(w.stamp(), "descriptor stamp"),
+                      payloadIn(w.descriptor(), kMaxDescriptorBytes, "descriptor"),
+                      std::nullopt,
+                      std::nullopt,
+                      {}};
   check(w.look_alike() <= 1U + static_cast<std::uint32_t>(kLookAlikeScale),
         "descriptor: look-alike distance beyond 1");
   if (w.look_alike() > 0U)

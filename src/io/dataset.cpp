@@ -217,10 +217,10 @@ RobotSpec readRobot(MapReader robot, const DatasetReadOptions& options) {
   if (out.name.empty()) robot.fail(name.Mark(), robot.keyOf("name"), "must not be empty");
   // A robot's name is its output folder and file prefix: a path ("..",
   // "../x", "/x") would write outside the output folder the user named.
-  const bool plain = out.name.size() <= kMaxRobotName &&
-                     std::all_of(out.name.begin(), out.name.end(), [](char c) {
-                       return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '_' || c == '-';
-                     });
+  const bool plain =
+      out.name.size() <= kMaxRobotName && std::all_of(out.name.begin(), out.name.end(), [](char c) {
+        return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '_' || c == '-';
+      });
   if (!plain)
     robot.fail(name.Mark(), robot.keyOf("name"),
                fmt::format("'{}' is not a plain name: letters, digits, '_' and '-' only, at most "

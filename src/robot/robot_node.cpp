@@ -207,7 +207,7 @@ struct Neighbour {
   /// The neighbour's descriptors of those candidates, to judge them again.
   std::map<core::KeyframeId, std::shared_ptr<const place::IrisDescriptor>> asked_descriptors;
   std::map<backend::LoopId, backend::Factor> loops;  ///< verified, by either side
-  std::set<backend::LoopId> accepted;                             ///< PCM's current set
+  std::set<backend::LoopId> accepted;                ///< PCM's current set
   /// The loops of this pair that a round's solution did not explain, by
   /// round: as this robot saw them, and as the neighbour gave notice of them.
   std::map<std::uint32_t, std::set<backend::LoopId>> own_unexplained;
@@ -293,8 +293,8 @@ struct RobotNode::Impl {
     const auto alikes = index.lookAlikes(*description, keyframe.T_odom_keyframe.translation(),
                                          ownPosition(), index.size());
     index.add(keyframe.id, description);
-    comm::DescriptorMessage m{keyframe.id, keyframe.stamp, place::encodeIris(*description),
-                              std::nullopt, std::nullopt, {}};
+    comm::DescriptorMessage m{keyframe.id,  keyframe.stamp, place::encodeIris(*description),
+                              std::nullopt, std::nullopt,   {}};
     if (!alikes.empty()) m.look_alike = alikes.front().second;
     for (const auto& [earlier, distance] : alikes) {
       if (m.resembles.size() == comm::kMaxResemblances) break;
@@ -306,7 +306,8 @@ struct RobotNode::Impl {
     // PCM checks the own chain as the neighbours read it (both sides decide alike).
     m = std::get<comm::DescriptorMessage>(comm::asDelivered(m));
     for (auto& [robot, n] : neighbours)
-      for (const comm::Resemblance& r : m.resembles) judgeOwnRepeat(robot, n, r.keyframe, *description);
+      for (const comm::Resemblance& r : m.resembles)
+        judgeOwnRepeat(robot, n, r.keyframe, *description);
     if (m.odometry) {
       const backend::Factor step = odometryFactor(self, keyframe.id, *m.odometry);
       own_chain.push_back(step);
@@ -372,9 +373,10 @@ struct RobotNode::Impl {
     comm::LoopMeasurement notice{pair.second, pair.first, comm::LoopStatus::repeated};
     messenger.send(robot, notice, now);
     count("inter_loops_withdrawn_repeated");
-    spdlog::debug("robot {}: t {:.1f}: withdraws the loop {}{} - {}{}: match {:.3f}, a repeat {:.3f}",
-                  core::robotName(self), now, core::robotName(self), pair.first.value(),
-                  core::robotName(robot), pair.second.value(), distance, repeat.distance);
+    spdlog::debug(
+        "robot {}: t {:.1f}: withdraws the loop {}{} - {}{}: match {:.3f}, a repeat {:.3f}",
+        core::robotName(self), now, core::robotName(self), pair.first.value(),
+        core::robotName(robot), pair.second.value(), distance, repeat.distance);
     decide(n);
     forgetFrameIfUnlinked();
   }
@@ -386,7 +388,8 @@ struct RobotNode::Impl {
     Neighbour& n = neighbour(from);
     const core::PoseKey theirs{from, m.match};
     const core::PoseKey mine{self, m.query};
-    if (!n.pcm.withdraw(from < self ? backend::LoopId{theirs, mine} : backend::LoopId{mine, theirs}))
+    if (!n.pcm.withdraw(from < self ? backend::LoopId{theirs, mine}
+                                    : backend::LoopId{mine, theirs}))
       return;
     count("inter_loops_withdrawn_repeated");
     decide(n);
@@ -486,7 +489,8 @@ struct RobotNode::Impl {
     for (auto it = n.asked.lower_bound({core::KeyframeId(from), core::KeyframeId(0)});
          it != n.asked.end() && it->first.first.value() < own.value() + spacing; ++it) {
       const std::uint64_t other = it->first.second.value();
-      const std::uint64_t gap = other > theirs.value() ? other - theirs.value() : theirs.value() - other;
+      const std::uint64_t gap =
+          other > theirs.value() ? other - theirs.value() : theirs.value() - other;
       if (gap < 2 * spacing) return true;
     }
     return false;

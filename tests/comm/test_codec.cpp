@@ -407,9 +407,10 @@ TEST(Codec, StateSummariesAndHeartbeatsRoundTrip) {
 }
 
 TEST(Codec, EncodeRefusesWhatCannotGoOnTheWire) {
-  EXPECT_THROW((void)encode({header(0, 1),
-                             DescriptorMessage{keyframe(1), 0.0, {}, std::nullopt, std::nullopt, {}}}),
-               core::Error);
+  EXPECT_THROW(
+      (void)encode(
+          {header(0, 1), DescriptorMessage{keyframe(1), 0.0, {}, std::nullopt, std::nullopt, {}}}),
+      core::Error);
   LoopMeasurement bad;
   bad.T_match_query.translation().x() = std::nan("");
   EXPECT_THROW((void)encode({header(0, 1), bad}), core::Error);

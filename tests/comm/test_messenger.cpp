@@ -214,8 +214,12 @@ const std::vector<std::uint8_t>& irisBytes(int which) {
 }
 
 DescriptorMessage descriptor(int keyframe) {
-  return {core::KeyframeId(static_cast<std::uint64_t>(keyframe)), 0.5 * keyframe,
-          irisBytes(keyframe % 8), std::nullopt, std::nullopt, {}};
+  return {core::KeyframeId(static_cast<std::uint64_t>(keyframe)),
+          0.5 * keyframe,
+          irisBytes(keyframe % 8),
+          std::nullopt,
+          std::nullopt,
+          {}};
 }
 
 LoopMeasurement measurement(int query) {

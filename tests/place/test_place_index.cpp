@@ -353,8 +353,7 @@ TEST_F(RealIndex, AQueryThatRepeatsOnItsOwnRouteIsAmbiguousToo) {
   ASSERT_FALSE(alikes.empty());
   EXPECT_EQ(alikes.front().first, core::KeyframeId(100));
   EXPECT_FLOAT_EQ(alikes.front().second, *look_alike);
-  for (std::size_t i = 1; i < alikes.size(); ++i)
-    EXPECT_LE(alikes[i - 1].second, alikes[i].second);
+  for (std::size_t i = 1; i < alikes.size(); ++i) EXPECT_LE(alikes[i - 1].second, alikes[i].second);
   // A revisit 5 m on is the same place, not a look-alike: only places far
   // off count, which look less alike.
   const std::optional<float> revisit = querying.lookAlikeDistance(
