@@ -38,6 +38,11 @@ std::string refusalCounter(comm::LoopStatus status) {
   return kNames[static_cast<std::size_t>(status)];
 }
 
+/// The id of the loop between two robots' keyframes, the lower robot's first.
+backend::LoopId pairLoop(const core::PoseKey& a, const core::PoseKey& b) {
+  return a.robot < b.robot ? backend::LoopId{a, b} : backend::LoopId{b, a};
+}
+
 backend::Factor odometryFactor(core::RobotId robot, core::KeyframeId keyframe,
                                const comm::OdometryStep& step) {
   backend::Factor f;
@@ -368,8 +373,7 @@ struct RobotNode::Impl {
     }
     const core::PoseKey own{self, pair.first};
     const core::PoseKey theirs{robot, pair.second};
-    if (!n.pcm.withdraw(robot < self ? backend::LoopId{theirs, own} : backend::LoopId{own, theirs}))
-      return;
+    if (!n.pcm.withdraw(pairLoop(own, theirs))) return;
     comm::LoopMeasurement notice{pair.second, pair.first, comm::LoopStatus::repeated};
     messenger.send(robot, notice, now);
     count("inter_loops_withdrawn_repeated");
@@ -388,9 +392,7 @@ struct RobotNode::Impl {
     Neighbour& n = neighbour(from);
     const core::PoseKey theirs{from, m.match};
     const core::PoseKey mine{self, m.query};
-    if (!n.pcm.withdraw(from < self ? backend::LoopId{theirs, mine}
-                                    : backend::LoopId{mine, theirs}))
-      return;
+    if (!n.pcm.withdraw(pairLoop(mine, theirs))) return;
     count("inter_loops_withdrawn_repeated");
     decide(n);
     forgetFrameIfUnlinked();
@@ -985,8 +987,7 @@ struct RobotNode::Impl {
     Neighbour& n = neighbour(from);
     const core::PoseKey theirs{from, m.match};
     const core::PoseKey mine{self, m.query};
-    n.their_unexplained[m.round].insert(from < self ? backend::LoopId{theirs, mine}
-                                                    : backend::LoopId{mine, theirs});
+    n.their_unexplained[m.round].insert(pairLoop(mine, theirs));
     withdrawIfBothSaw(from, n, m.round);
   }
 
