@@ -1,7 +1,7 @@
 // Writes the fuzzers' seed corpora: every message kind with realistic values,
 // and a real KITTI descriptor and verification cloud, so that fuzzing starts
 // from inputs that reach deep into each decoder.
-// Usage: fuzz_seeds DIR   (writes DIR/message, DIR/descriptor, DIR/cloud)
+// Usage: fuzz_seeds DIR   (writes DIR/message, DIR/descriptor, DIR/cloud, DIR/bag)
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -9,6 +9,7 @@
 #include <vector>
 
 #include <dcl/comm/messages.hpp>
+#include <dcl/io/bag_writer.hpp>
 #include <dcl/io/kitti_scan.hpp>
 #include <dcl/place/descriptor_codec.hpp>
 #include <dcl/place/lidar_iris.hpp>
@@ -107,6 +108,23 @@ int main(int argc, char** argv) {
           comm::encode(m));
     ++sequence;
   }
+  // A bag as dcl-slam exports one: a few points of the scan, and odometry.
+  dcl::io::BagWriter bag((dir / "bag" / "export.bag").string());
+  dcl::core::PointCloud few;
+  for (std::size_t i = 0; i < scan.size(); i += scan.size() / 16) {
+    few.points.push_back(scan.points[i]);
+    few.intensity.push_back(scan.intensity.empty() ? 0.0F : scan.intensity[i]);
+  }
+  for (int k = 0; k < 2; ++k) {
+    bag.writeCloud("/points", 100.0 + k, few, "lidar");
+    bag.writeOdometry("/odom", 100.0 + k,
+                      dcl::core::makePose(Eigen::Vector3d(k, 0, 0), Eigen::Quaterniond::Identity()),
+                      "odom", "base_link");
+  }
+  bag.close();
+  std::filesystem::copy_file(std::string(DCL_DATA_DIR) + "/rosbags/evo_tf_example.bag",
+                             dir / "bag" / "evo_tf_example.bag",
+                             std::filesystem::copy_options::overwrite_existing);
   std::printf("seeds written to %s\n", dir.c_str());
   return 0;
 }

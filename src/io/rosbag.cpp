@@ -1,21 +1,19 @@
-// ROS and boost stay in this file: the public header knows nothing of them.
-// The generated message headers (sensor_msgs/PointCloud2.h, ...) use
-// std::allocator<void>::rebind, removed in C++20, so they do not compile here:
-// messages are decoded from their ROS1 serialisation (little-endian, strings
-// and arrays prefixed by a uint32 length) by the bounds-checked ByteReader,
-// after checking each connection's md5sum names the definition decoded here.
+// ROS1 bags are read by our own bounded reader of the record layer
+// (bag_file.hpp); messages are decoded from their ROS1 serialisation
+// (little-endian, strings and arrays prefixed by a uint32 length) by the
+// bounds-checked ByteReader, after checking each connection's md5sum names the
+// definition decoded here.
 #include <algorithm>
 #include <array>
 #include <map>
 
 #include <fmt/format.h>
-#include <rosbag/bag.h>
-#include <rosbag/view.h>
 
 #include <dcl/core/error.hpp>
 #include <dcl/io/file.hpp>
 #include <dcl/io/rosbag.hpp>
 
+#include "bag_file.hpp"
 #include "point_fields.hpp"
 
 namespace dcl::io {
@@ -38,21 +36,14 @@ constexpr KnownType kPoseStampedType = {"geometry_msgs/PoseStamped",
 constexpr KnownType kPoseCovarianceType = {"geometry_msgs/PoseWithCovarianceStamped",
                                            "953b798c0f514ff060a53a3498ce6246"};
 
-/// Messages larger than this are taken as a corrupt length.
-constexpr std::size_t kMaxMessageBytes = std::size_t{1} << 30;
-
 std::string_view bareTopic(std::string_view topic) {
   while (!topic.empty() && topic.front() == '/') topic.remove_prefix(1);
   return topic;
 }
 
-/// Selects the connections of one topic, with or without its leading '/'.
-struct TopicMatch {
-  std::string topic;
-  bool operator()(const rosbag::ConnectionInfo* c) const {
-    return bareTopic(c->topic) == bareTopic(topic);
-  }
-};
+bool onTopic(const detail::BagConnection& c, const std::string& topic) {
+  return bareTopic(c.topic) == bareTopic(topic);
+}
 
 [[noreturn]] void failTopic(const std::string& path, const std::string& topic,
                             const std::string& what) {
@@ -64,41 +55,23 @@ struct TopicMatch {
   throw core::FileError({path}, fmt::format("topic '{}' message {}: {}", topic, i, what));
 }
 
-/// Runs `f`, turning rosbag's and boost's exceptions into FileError.
-template <class F>
-auto guarded(const std::string& path, F&& f) {
-  try {
-    return f();
-  } catch (const core::Error&) {
-    throw;
-  } catch (const std::exception& e) {
-    throw core::FileError({path}, fmt::format("cannot read the bag: {}", e.what()));
-  }
-}
-
-void openBag(rosbag::Bag& bag, const std::string& path) {
-  requireFile(path);
-  guarded(path, [&] { bag.open(path, rosbag::bagmode::Read); });
-}
-
-std::vector<BagTopic> topicsOf(rosbag::Bag& bag) {
-  rosbag::View all(bag);
+std::vector<BagTopic> topicsOf(const detail::BagFile& bag) {
   std::map<std::string, BagTopic> topics;
-  for (const auto* c : all.getConnections()) {
-    BagTopic& t = topics[c->topic];
-    t.name = c->topic;
-    if (t.type.empty()) t.type = c->datatype;
-    if (t.type.find(c->datatype) == std::string::npos) t.type.append(",").append(c->datatype);
+  for (const auto& c : bag.connections()) {
+    BagTopic& t = topics[c.topic];
+    t.name = c.topic;
+    if (t.type.empty()) t.type = c.type;
+    if (t.type.find(c.type) == std::string::npos) t.type.append(",").append(c.type);
+  }
+  for (const auto& m : bag.messages([](const detail::BagConnection&) { return true; })) {
+    ++topics[bag.connections()[m.connection].topic].messages;
   }
   std::vector<BagTopic> out;
-  for (auto& [name, t] : topics) {
-    t.messages = rosbag::View(bag, rosbag::TopicQuery(name)).size();
-    out.push_back(std::move(t));
-  }
+  for (auto& [name, t] : topics) out.push_back(std::move(t));
   return out;
 }
 
-std::string describeTopics(rosbag::Bag& bag) {
+std::string describeTopics(const detail::BagFile& bag) {
   std::string list;
   for (const auto& t : topicsOf(bag)) {
     list.append(list.empty() ? "" : ", ").append(t.name).append(" (").append(t.type).append(")");
@@ -106,49 +79,35 @@ std::string describeTopics(rosbag::Bag& bag) {
   return list.empty() ? "none" : list;
 }
 
-/// Throws unless `topic` exists and every connection on it has one of `types`.
-void requireTopicType(rosbag::Bag& bag, const std::string& path, const std::string& topic,
-                      const std::vector<KnownType>& types) {
-  rosbag::View view(bag, TopicMatch{topic});
-  const auto connections = view.getConnections();
-  if (connections.empty()) {
-    failTopic(path, topic,
-              fmt::format("no such topic in the bag; its topics: {}", describeTopics(bag)));
-  }
-  for (const auto* c : connections) {
+/// The messages of `topic`, in time order; throws unless the topic exists and
+/// every connection on it has one of `types`.
+std::vector<detail::BagMessage> topicMessages(const detail::BagFile& bag, const std::string& topic,
+                                              const std::vector<KnownType>& types) {
+  bool found = false;
+  for (const auto& c : bag.connections()) {
+    if (!onTopic(c, topic)) continue;
+    found = true;
     const auto known = std::find_if(types.begin(), types.end(),
-                                    [&](const KnownType& t) { return t.name == c->datatype; });
+                                    [&](const KnownType& t) { return t.name == c.type; });
     std::string expected;
     for (const auto& t : types) expected.append(expected.empty() ? "" : " or ").append(t.name);
     if (known == types.end()) {
-      failTopic(path, topic, fmt::format("type is {}, expected {}", c->datatype, expected));
+      failTopic(bag.path(), topic, fmt::format("type is {}, expected {}", c.type, expected));
     }
-    if (known->md5 != c->md5sum) {
-      failTopic(path, topic,
-                fmt::format("{} with md5sum {}, not the known definition {}", c->datatype,
-                            c->md5sum, known->md5));
+    if (known->md5 != c.md5sum) {
+      failTopic(bag.path(), topic,
+                fmt::format("{} with md5sum {}, not the known definition {}", c.type, c.md5sum,
+                            known->md5));
     }
   }
+  if (!found) {
+    failTopic(bag.path(), topic,
+              fmt::format("no such topic in the bag; its topics: {}", describeTopics(bag)));
+  }
+  return bag.messages([&](const detail::BagConnection& c) { return onTopic(c, topic); });
 }
 
 // ---- ROS1 serialisation ----
-
-/// Receives a message's bytes from rosbag (the Stream concept of MessageInstance::write).
-struct ByteSink {
-  std::vector<char> bytes;
-  std::uint8_t* advance(std::uint32_t n) {
-    if (n > kMaxMessageBytes - bytes.size()) throw core::Error("message length is corrupt");
-    const std::size_t at = bytes.size();
-    bytes.resize(at + n);
-    return reinterpret_cast<std::uint8_t*>(bytes.data() + at);
-  }
-};
-
-std::vector<char> messageBytes(const rosbag::MessageInstance& m) {
-  ByteSink sink;
-  m.write(sink);
-  return std::move(sink.bytes);
-}
 
 std::string readString(ByteReader& in, const char* what) {
   const auto n = in.read<std::uint32_t>(what);
@@ -314,48 +273,24 @@ std::pair<double, Eigen::Isometry3d> readStampedPose(ByteReader& in, std::string
 }  // namespace
 
 std::vector<BagTopic> listBagTopics(const std::string& path) {
-  rosbag::Bag bag;
-  openBag(bag, path);
-  return guarded(path, [&] { return topicsOf(bag); });
+  return topicsOf(detail::BagFile(path));
 }
 
 struct BagCloudReader::Impl {
-  std::string path;
   std::string topic;
   BagCloudOptions options;
-  rosbag::Bag bag;
-  std::unique_ptr<rosbag::View> view;
-  rosbag::View::iterator it;
-  std::size_t size = 0;
+  detail::BagFile bag;
+  std::vector<detail::BagMessage> messages;
   std::size_t index = 0;
 
-  /// The current message's bytes; advances past it even when it cannot be read.
-  std::vector<char> take() {
-    std::vector<char> bytes;
-    try {
-      bytes = messageBytes(*it);
-    } catch (...) {
-      ++it;
-      throw;
-    }
-    ++it;
-    return bytes;
-  }
+  Impl(const std::string& path, std::string topic_name, const BagCloudOptions& o)
+      : topic(std::move(topic_name)), options(o), bag(path) {}
 };
 
 BagCloudReader::BagCloudReader(const std::string& path, const std::string& topic,
                                const BagCloudOptions& options)
-    : impl_(std::make_unique<Impl>()) {
-  impl_->path = path;
-  impl_->topic = topic;
-  impl_->options = options;
-  openBag(impl_->bag, path);
-  guarded(path, [&] {
-    requireTopicType(impl_->bag, path, topic, {kCloudType});
-    impl_->view = std::make_unique<rosbag::View>(impl_->bag, TopicMatch{topic});
-    impl_->size = impl_->view->size();
-    impl_->it = impl_->view->begin();
-  });
+    : impl_(std::make_unique<Impl>(path, topic, options)) {
+  impl_->messages = topicMessages(impl_->bag, topic, {kCloudType});
 }
 
 BagCloudReader::~BagCloudReader() = default;
@@ -363,22 +298,22 @@ BagCloudReader::BagCloudReader(BagCloudReader&&) noexcept = default;
 BagCloudReader& BagCloudReader::operator=(BagCloudReader&&) noexcept = default;
 
 std::size_t BagCloudReader::size() const {
-  return impl_->size;
+  return impl_->messages.size();
 }
 std::size_t BagCloudReader::index() const {
   return impl_->index;
 }
 
 std::optional<StampedCloud> BagCloudReader::next() {
-  if (impl_->index >= impl_->size || impl_->it == impl_->view->end()) return std::nullopt;
+  if (impl_->index >= impl_->messages.size()) return std::nullopt;
   const std::size_t i = impl_->index++;
+  const std::span<const char> bytes = impl_->bag.read(impl_->messages[i]);
   try {
-    const std::vector<char> bytes = impl_->take();
     ByteReader in(bytes, "message bytes");
     const RosCloud msg = readCloud(in);
     return StampedCloud{msg.stamp, decodeCloud(msg, impl_->options.drop_nan)};
   } catch (const std::exception& e) {
-    failMessage(impl_->path, impl_->topic, i, e.what());
+    failMessage(impl_->bag.path(), impl_->topic, i, e.what());
   }
 }
 
@@ -392,26 +327,23 @@ std::vector<StampedCloud> readBagClouds(const std::string& path, const std::stri
 }
 
 core::Trajectory readBagTrajectory(const std::string& path, const std::string& topic) {
-  rosbag::Bag bag;
-  openBag(bag, path);
-  return guarded(path, [&] {
-    requireTopicType(bag, path, topic, {kOdometryType, kPoseStampedType, kPoseCovarianceType});
-    rosbag::View view(bag, TopicMatch{topic});
-    core::Trajectory trajectory;
-    trajectory.reserve(view.size());
-    std::size_t i = 0;
-    for (auto it = view.begin(); it != view.end(); ++it, ++i) {
-      try {
-        const std::vector<char> bytes = messageBytes(*it);
-        ByteReader in(bytes, "message bytes");
-        const auto [stamp, pose] = readStampedPose(in, it->getDataType());
-        trajectory.push_back(stamp, pose);
-      } catch (const std::exception& e) {
-        failMessage(path, topic, i, e.what());
-      }
+  detail::BagFile bag(path);
+  const auto messages =
+      topicMessages(bag, topic, {kOdometryType, kPoseStampedType, kPoseCovarianceType});
+  core::Trajectory trajectory;
+  trajectory.reserve(messages.size());
+  for (std::size_t i = 0; i < messages.size(); ++i) {
+    const std::span<const char> bytes = bag.read(messages[i]);
+    try {
+      ByteReader in(bytes, "message bytes");
+      const auto [stamp, pose] =
+          readStampedPose(in, bag.connections()[messages[i].connection].type);
+      trajectory.push_back(stamp, pose);
+    } catch (const std::exception& e) {
+      failMessage(path, topic, i, e.what());
     }
-    return trajectory;
-  });
+  }
+  return trajectory;
 }
 
 }  // namespace dcl::io

@@ -4,8 +4,10 @@
 Run with Debian's interpreter (python3-rosbag, python3-sensor-msgs,
 python3-nav-msgs): /usr/bin/python3 make_test_bag.py OUTPUT_FOLDER
 
-Writes OUTPUT_FOLDER/clouds.bag. Every value below is mirrored by
-tests/io/test_rosbag.cpp; change both together.
+Writes OUTPUT_FOLDER/clouds.bag, and the same messages in small chunks,
+uncompressed (clouds_chunked.bag), bz2 (clouds_bz2.bag) and lz4
+(clouds_lz4.bag). Every value below is mirrored by tests/io/test_rosbag.cpp;
+change both together.
 """
 
 import math
@@ -151,9 +153,8 @@ def pose(k):
     return msg
 
 
-def main():
-    out = os.path.join(sys.argv[1], 'clouds.bag')
-    with rosbag.Bag(out, 'w') as bag:
+def write(path, **options):
+    with rosbag.Bag(path, 'w', **options) as bag:
         for k in range(3):
             msg = velodyne(k)
             bag.write('/velodyne_points', msg, msg.header.stamp)
@@ -172,6 +173,13 @@ def main():
         for k in range(2):
             msg = pose(k)
             bag.write('pose', msg, msg.header.stamp)
+
+
+def main():
+    write(os.path.join(sys.argv[1], 'clouds.bag'))
+    for name, compression in [('chunked', 'none'), ('bz2', 'bz2'), ('lz4', 'lz4')]:
+        write(os.path.join(sys.argv[1], 'clouds_%s.bag' % name), compression=compression,
+              chunk_threshold=512)
 
 
 if __name__ == '__main__':
