@@ -15,6 +15,7 @@
 
 #include <dcl/core/error.hpp>
 #include <dcl/io/bag_writer.hpp>
+#include <dcl/io/file.hpp>
 
 namespace dcl::io {
 
@@ -262,10 +263,12 @@ RawMessage odometryMessage(std::uint32_t seq, const ros::Time& stamp, const Eige
 
 struct BagWriter::Impl {
   std::string path;
-  std::string tmp;
+  TempFile tmp;
   rosbag::Bag bag;
   std::map<std::string, std::uint32_t> sequence;  // per topic
   bool closed = false;
+
+  explicit Impl(std::string p) : path(std::move(p)), tmp(path) {}
 
   template <class F>
   void guarded(const char* what, F&& f) {
@@ -285,13 +288,8 @@ struct BagWriter::Impl {
   }
 };
 
-BagWriter::BagWriter(std::string path) : impl_(std::make_unique<Impl>()) {
-  impl_->path = std::move(path);
-  impl_->tmp = impl_->path + ".tmp";
-  const fs::path parent = fs::path(impl_->path).parent_path();
-  std::error_code ec;
-  if (!parent.empty()) fs::create_directories(parent, ec);
-  impl_->guarded("create", [&] { impl_->bag.open(impl_->tmp, rosbag::bagmode::Write); });
+BagWriter::BagWriter(std::string path) : impl_(std::make_unique<Impl>(path)) {
+  impl_->guarded("create", [&] { impl_->bag.open(impl_->tmp.path(), rosbag::bagmode::Write); });
 }
 
 BagWriter::~BagWriter() {
@@ -300,8 +298,6 @@ BagWriter::~BagWriter() {
     impl_->bag.close();
   } catch (...) {  // NOLINT(bugprone-empty-catch): the bag is discarded anyway
   }
-  std::error_code ec;
-  fs::remove(impl_->tmp, ec);
 }
 
 void BagWriter::writeCloud(const std::string& topic, double stamp, const core::PointCloud& cloud,
@@ -322,9 +318,7 @@ void BagWriter::writeOdometry(const std::string& topic, double stamp,
 void BagWriter::close() {
   if (impl_->closed) return;
   impl_->guarded("finish", [&] { impl_->bag.close(); });
-  std::error_code ec;
-  fs::rename(impl_->tmp, impl_->path, ec);
-  if (ec) throw core::FileError({impl_->path}, "cannot rename the finished bag: " + ec.message());
+  impl_->tmp.commit();
   impl_->closed = true;
 }
 

@@ -1,6 +1,10 @@
 #include <cerrno>
+#include <cstdlib>
 #include <filesystem>
 #include <system_error>
+
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <dcl/io/file.hpp>
 
@@ -24,35 +28,77 @@ std::vector<char> readFile(const std::string& path) {
   return data;
 }
 
+namespace {
+
+/// `path` with symbolic links at its end followed (a link to a link, ...), so
+/// that writing replaces the file a link points to instead of the link.
+fs::path followLinks(const std::string& path) {
+  fs::path target(path);
+  std::error_code ec;
+  for (int hops = 0; hops < 40 && fs::is_symlink(fs::symlink_status(target, ec)); ++hops) {
+    const fs::path link = fs::read_symlink(target, ec);
+    if (ec) break;
+    target = link.is_absolute() ? link : target.parent_path() / link;
+  }
+  return target;
+}
+
+/// The process's umask, read without changing it (umask(2) can only set it).
+mode_t currentUmask() {
+  std::ifstream status("/proc/self/status");
+  std::string line;
+  while (std::getline(status, line)) {
+    if (line.rfind("Umask:", 0) == 0)
+      return static_cast<mode_t>(std::stoul(line.substr(6), nullptr, 8));
+  }
+  return 022;
+}
+
+}  // namespace
+
+TempFile::TempFile(const std::string& path) : path_(path), target_(followLinks(path).string()) {
+  const fs::path target(target_);
+  std::error_code ec;
+  if (fs::is_directory(target, ec)) throw FileError({path_}, "is a folder, not a file");
+  if (target.has_parent_path()) fs::create_directories(target.parent_path(), ec);
+  if (ec) throw FileError({path_}, "cannot create folder: " + ec.message());
+  // Appended piece by piece: GCC 12 warns (falsely) on `"." + std::string`.
+  const std::string hidden = std::string(".").append(target.filename().string()).append(".XXXXXX");
+  std::string name = (target.parent_path() / hidden).string();
+  const int fd = mkstemp(name.data());
+  if (fd < 0) throw FileError({path_}, std::string("cannot write: ") + std::strerror(errno));
+  ::close(fd);
+  tmp_ = std::move(name);
+}
+
+TempFile::~TempFile() {
+  if (committed_) return;
+  std::error_code ec;
+  fs::remove(tmp_, ec);
+}
+
+void TempFile::commit() {
+  std::error_code ec;
+  const auto existing = fs::status(target_, ec);
+  const auto mode = fs::exists(existing) ? existing.permissions()
+                                         : static_cast<fs::perms>(0666 & ~currentUmask());
+  fs::permissions(tmp_, mode, ec);
+  fs::rename(tmp_, target_, ec);
+  if (ec) throw FileError({path_}, "cannot replace file: " + ec.message());
+  committed_ = true;
+}
+
 void writeFileAtomic(const std::string& path, const std::function<void(std::ostream&)>& write,
                      bool binary) {
-  const fs::path target(path);
-  std::error_code ec;
-  if (target.has_parent_path()) fs::create_directories(target.parent_path(), ec);
-  if (ec) throw FileError({path}, "cannot create folder: " + ec.message());
-  const fs::path tmp = target.string() + ".tmp";
+  TempFile tmp(path);
   {
-    std::ofstream out(tmp, binary ? std::ios::binary | std::ios::trunc : std::ios::trunc);
+    std::ofstream out(tmp.path(), binary ? std::ios::binary | std::ios::trunc : std::ios::trunc);
     if (!out) throw FileError({path}, std::string("cannot write: ") + std::strerror(errno));
-    try {
-      write(out);
-    } catch (...) {
-      out.close();
-      fs::remove(tmp, ec);
-      throw;
-    }
+    write(out);
     out.flush();
-    if (!out) {
-      out.close();
-      fs::remove(tmp, ec);
-      throw FileError({path}, "write failed (disk full?)");
-    }
+    if (!out) throw FileError({path}, "write failed (disk full?)");
   }
-  fs::rename(tmp, target, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw FileError({path}, "cannot replace file: " + ec.message());
-  }
+  tmp.commit();
 }
 
 void requireFile(const std::string& path) {

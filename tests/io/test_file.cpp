@@ -1,10 +1,12 @@
 // The shared building blocks of dcl::io (file.hpp): whole-file reads, atomic
 // writes, the line reader, the byte reader and number parsing.
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <dcl/io/file.hpp>
 
@@ -35,13 +37,23 @@ TEST(FileTest, ReadFileNamesAMissingFileOrAFolder) {
   EXPECT_TRUE(contains(fileError([&] { requireFile(missing); }), missing));
 }
 
+/// The names in `dir`, sorted (hidden ones too).
+std::vector<std::string> filesIn(const std::filesystem::path& dir) {
+  std::vector<std::string> names;
+  for (const auto& e : std::filesystem::directory_iterator(dir)) {
+    names.push_back(e.path().filename().string());
+  }
+  std::sort(names.begin(), names.end());
+  return names;
+}
+
 TEST(FileTest, WriteFileAtomicCreatesFoldersAndReplaces) {
   const auto dir = test::freshDir("write_atomic");
   const std::string path = (dir / "a" / "b" / "out.txt").string();
   writeFileAtomic(path, [](std::ostream& out) { out << "first"; });
   writeFileAtomic(path, [](std::ostream& out) { out << "second"; });
   EXPECT_EQ(test::readBytes(path), "second");
-  EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+  EXPECT_EQ(filesIn(dir / "a" / "b"), std::vector<std::string>{"out.txt"});  // no temporary left
 }
 
 TEST(FileTest, WriteFileAtomicKeepsTheOldFileWhenTheWriterThrows) {
@@ -55,7 +67,52 @@ TEST(FileTest, WriteFileAtomicKeepsTheOldFileWhenTheWriterThrows) {
                                }),
                std::runtime_error);
   EXPECT_EQ(test::readBytes(path), "kept");
-  EXPECT_FALSE(std::filesystem::exists(path + ".tmp"));
+  EXPECT_EQ(filesIn(dir), std::vector<std::string>{"out.txt"});
+}
+
+TEST(FileTest, WriteFileAtomicLeavesTheUsersOtherFilesAlone) {
+  const auto dir = test::freshDir("write_neighbours");
+  const std::string path = (dir / "o.tum").string();
+  test::writeBytes(path + ".tmp", "the user's own file");
+  writeFileAtomic(path, [](std::ostream& out) { out << "new"; });
+  EXPECT_EQ(test::readBytes(path + ".tmp"), "the user's own file");
+  EXPECT_EQ(test::readBytes(path), "new");
+  EXPECT_EQ(filesIn(dir), (std::vector<std::string>{"o.tum", "o.tum.tmp"}));
+}
+
+TEST(FileTest, WriteFileAtomicWritesThroughSymbolicLinks) {
+  namespace fs = std::filesystem;
+  const auto dir = test::freshDir("write_links");
+  fs::create_directories(dir / "data");
+  test::writeBytes(dir / "data" / "real.txt", "old");
+  fs::create_symlink("data/real.txt", dir / "link.txt");
+  fs::create_symlink("link.txt", dir / "link2.txt");  // a link to a link
+  writeFileAtomic((dir / "link2.txt").string(), [](std::ostream& out) { out << "new"; });
+  EXPECT_TRUE(fs::is_symlink(dir / "link.txt"));
+  EXPECT_TRUE(fs::is_symlink(dir / "link2.txt"));
+  EXPECT_EQ(test::readBytes(dir / "data" / "real.txt"), "new");
+  EXPECT_EQ(filesIn(dir / "data"), std::vector<std::string>{"real.txt"});
+}
+
+TEST(FileTest, WriteFileAtomicGivesNewFilesTheUsualPermissions) {
+  namespace fs = std::filesystem;
+  const auto dir = test::freshDir("write_mode");
+  const mode_t old_mask = umask(027);
+  writeFileAtomic((dir / "new.txt").string(), [](std::ostream& out) { out << "x"; });
+  umask(old_mask);
+  EXPECT_EQ(fs::status(dir / "new.txt").permissions(), static_cast<fs::perms>(0640));
+  fs::permissions(dir / "new.txt", static_cast<fs::perms>(0604));
+  writeFileAtomic((dir / "new.txt").string(), [](std::ostream& out) { out << "y"; });
+  EXPECT_EQ(fs::status(dir / "new.txt").permissions(), static_cast<fs::perms>(0604));
+}
+
+TEST(FileTest, WriteFileAtomicOntoAFolderSaysSo) {
+  const auto dir = test::freshDir("write_folder");
+  std::filesystem::create_directories(dir / "out.tum");
+  const std::string path = (dir / "out.tum").string();
+  const std::string msg = fileError([&] { writeFileAtomic(path, [](std::ostream&) {}); });
+  EXPECT_TRUE(contains(msg, path + ": is a folder, not a file")) << msg;
+  EXPECT_EQ(filesIn(dir), std::vector<std::string>{"out.tum"});
 }
 
 TEST(FileTest, SplitWhitespaceDropsEmptyTokens) {

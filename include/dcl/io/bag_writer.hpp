@@ -11,8 +11,9 @@
 
 namespace dcl::io {
 
-/// Writes one bag. Messages go to `path`.tmp; `close` renames it to `path`, so an
-/// interrupted export never leaves a half-written bag under the final name.
+/// Writes one bag. Messages go to a temporary file beside `path` (io::TempFile);
+/// `close` renames it to `path`, so an interrupted export never leaves a
+/// half-written bag under the final name.
 class BagWriter {
  public:
   /// Creates the temporary bag (and parent folders); throws core::FileError if it cannot.

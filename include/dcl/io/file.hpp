@@ -26,8 +26,37 @@ std::vector<char> readFile(const std::string& path);
 
 /// Writes `path` through `write` into a temporary file beside it, then renames it
 /// over `path`: a failure leaves any existing file untouched. Creates parent folders.
+/// When `path` is a symbolic link, the file it points to is replaced (the link stays).
 void writeFileAtomic(const std::string& path, const std::function<void(std::ostream&)>& write,
                      bool binary = false);
+
+/// A file being written under a unique temporary name beside its final path,
+/// moved there by `commit`: readers of the final path see the old file or the
+/// whole new one, never a part, and no other file is touched on the way.
+class TempFile {
+ public:
+  /// Creates the folders and an empty temporary file beside `path` (a unique
+  /// hidden name, so that no file of the user's is ever overwritten), following
+  /// `path` when it is a symbolic link. Throws FileError naming `path`.
+  explicit TempFile(const std::string& path);
+  /// Removes the temporary file unless it was committed.
+  ~TempFile();
+  TempFile(const TempFile&) = delete;
+  TempFile& operator=(const TempFile&) = delete;
+
+  /// Where to write.
+  [[nodiscard]] const std::string& path() const { return tmp_; }
+
+  /// Gives the file the permissions of a new file (or of the one it replaces)
+  /// and renames it over the final path. Throws FileError naming the final path.
+  void commit();
+
+ private:
+  std::string path_;    ///< as the caller named it, for messages
+  std::string target_;  ///< the final file, symbolic links followed
+  std::string tmp_;
+  bool committed_ = false;
+};
 
 /// Throws FileError naming `path` when it does not exist or is not a regular file.
 void requireFile(const std::string& path);
