@@ -14,6 +14,7 @@
 #include <dcl/io/rosbag.hpp>
 
 #include "commands.hpp"
+#include "output_folder.hpp"
 
 namespace dcl::apps {
 
@@ -31,6 +32,7 @@ struct ConvertOptions {
   std::string out_times;             ///< times file to write beside a KITTI pose output
   std::string encoding = "binary";   ///< PCD / PLY encoding: ascii | binary
   std::string cloud_format = "bin";  ///< per-scan files from a bag: bin | pcd | ply
+  bool force = false;                ///< replace a scan folder that holds other files
 };
 
 std::string extensionOf(const std::string& path) {
@@ -76,9 +78,9 @@ void convertPoses(const ConvertOptions& o) {
 
 /// Every cloud of a bag topic as numbered files in a folder, with their stamps in times.txt.
 void convertBagClouds(const ConvertOptions& o) {
+  OutputFolder out(o.output, o.force);  // the scans appear together, or not at all
   io::BagCloudReader reader(o.input, o.topic);
-  const fs::path folder(o.output);
-  fs::create_directories(folder);
+  const fs::path folder(out.path());
   std::vector<double> stamps;
   core::ProgressBar progress("convert", reader.size(), "scans");
   while (auto scan = reader.next()) {
@@ -88,9 +90,10 @@ void convertBagClouds(const ConvertOptions& o) {
     progress.update(stamps.size());
   }
   progress.finish();
-  io::writeFileAtomic((folder / "times.txt").string(), [&](std::ostream& out) {
-    for (double t : stamps) out << fmt::format("{:.9f}\n", t);
+  io::writeFileAtomic((folder / "times.txt").string(), [&](std::ostream& s) {
+    for (double t : stamps) s << fmt::format("{:.9f}\n", t);
   });
+  out.commit();
   fmt::print("{} scans of {} -> {}/\n", stamps.size(), o.topic, o.output);
 }
 
@@ -144,6 +147,7 @@ void addConvertCommand(CLI::App& app) {
       ->capture_default_str();
   cmd->add_option("--cloud-format", o->cloud_format, "scan files from a bag: bin, pcd or ply")
       ->capture_default_str();
+  addForceFlag(*cmd, o->force);
   cmd->callback([o] { runConvert(*o); });
 }
 

@@ -19,6 +19,7 @@
 #include <dcl/swarm/swarm_run.hpp>
 
 #include "commands.hpp"
+#include "output_folder.hpp"
 #include "robot_outputs.hpp"
 #include "run_swarm.hpp"
 
@@ -30,18 +31,20 @@ using Json = nlohmann::ordered_json;
 struct DemoOptions {
   std::string out = "out/demo";  ///< where results go
   int threads = 0;               ///< robots processed at once (0: every core)
+  bool force = false;            ///< replace --out even when it holds files of another program
 };
 
-/// The preset's dataset (ground truth only: scans are regenerated) and its preview.
-std::string simulate(const std::string& out) {
+/// The preset's dataset (ground truth only: scans are regenerated) and its
+/// preview, written into `out` (which will be `shown`).
+std::string simulate(const std::string& out, const std::string& shown) {
   const std::string folder = out + "/dataset";
   const io::DatasetSpec spec = sim::writeSimDataset(folder, sim::makePreset("demo"));
   const sim::SimWorld world(spec);
   std::vector<core::Trajectory> routes;
   for (std::size_t r = 0; r < world.robots(); ++r) routes.push_back(world.groundTruth(r));
   sim::writeWorldPreview(world.world(), routes, out + "/preview_world.png");
-  fmt::print("simulated the 'demo' preset: {} robots, {} triangles, dataset in {}\n",
-             world.robots(), world.world().triangleCount(), folder);
+  fmt::print("simulated the 'demo' preset: {} robots, {} triangles, dataset in {}/dataset\n",
+             world.robots(), world.world().triangleCount(), shown);
   return folder;
 }
 
@@ -68,10 +71,11 @@ void printTable(const Json& m) {
 }
 
 void runDemo(const DemoOptions& o, const AppConfig& config) {
-  std::filesystem::create_directories(o.out);
-  const std::string dataset = simulate(o.out);
+  OutputFolder out(o.out, o.force);
+  const std::string dataset = simulate(out.path(), out.out());
   const Json metrics =
-      runSwarmDataset(dataset, o.out, 0, o.threads, swarm::SwarmConfig{}.settle, config);
+      runSwarmDataset(dataset, out.path(), 0, o.threads, swarm::SwarmConfig{}.settle, config);
+  out.commit();
   printTable(metrics);
   fmt::print("outputs in {}: report.html, {}metrics.json, one folder per robot\n", o.out,
              metrics["map_points"].get<std::size_t>() > 0 ? "map.ply (robots coloured), " : "");
@@ -88,6 +92,7 @@ void addDemoCommand(CLI::App& app, const AppConfig& config) {
   cmd->add_option("--out", o->out, "output folder")->capture_default_str();
   cmd->add_option("--threads", o->threads, "robots processed at once (0: every core)")
       ->capture_default_str();
+  addForceFlag(*cmd, o->force);
   cmd->callback([o, &config] {
     if (o->threads < 0) throw core::Error("--threads must be at least 0");
     runDemo(*o, config);

@@ -35,6 +35,7 @@
 #include <dcl/sim/sim_source.hpp>
 
 #include "commands.hpp"
+#include "output_folder.hpp"
 
 namespace dcl::apps {
 
@@ -50,6 +51,7 @@ struct LoopsOptions {
   double max_error_m = 1.0;             ///< a loop is correct within this translation error
   double max_error_deg = 2.0;           ///< and this rotation error
   bool json = false;                    ///< print metrics.json instead of the summary
+  bool force = false;                   ///< replace --out even when it holds other files
 };
 
 double seconds(Clock::time_point since) {
@@ -335,6 +337,8 @@ void writeCsv(const std::string& path, const std::vector<Robot>& robots,
 }
 
 void runLoops(const LoopsOptions& o, const AppConfig& config) {
+  OutputFolder out(o.out, o.force);
+  out.requireOutside(o.dataset, "the dataset");
   const io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   if (spec.robots.size() < 2)
     throw core::Error("dataset '" + o.dataset + "' has one robot: inter-robot loops need two");
@@ -396,10 +400,10 @@ void runLoops(const LoopsOptions& o, const AppConfig& config) {
                   {"verification_mean_ms", 1e3 * ratio(1, candidates.size()) * verify_s},
                   {"pcm", pcm_s},
                   {"loop_check", check_s}};
-  std::filesystem::create_directories(o.out);
-  io::writeFileAtomic(o.out + "/metrics.json",
-                      [&](std::ostream& out) { out << m.dump(2) << "\n"; });
-  writeCsv(o.out + "/loops.csv", robots, candidates);
+  io::writeFileAtomic(out.path() + "/metrics.json",
+                      [&](std::ostream& s) { s << m.dump(2) << "\n"; });
+  writeCsv(out.path() + "/loops.csv", robots, candidates);
+  out.commit();
   if (o.json) {
     fmt::print("{}\n", m.dump(2));
     return;
@@ -442,6 +446,7 @@ void addBenchLoopsCommand(CLI::App& bench, const AppConfig& config) {
                   "deg, a correct loop's largest rotation error")
       ->capture_default_str();
   cmd->add_flag("--json", o->json, "print metrics.json");
+  addForceFlag(*cmd, o->force);
   cmd->callback([o, &config] { runLoops(*o, config); });
 }
 

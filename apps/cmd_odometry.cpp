@@ -29,6 +29,7 @@
 #include <dcl/sim/sim_source.hpp>
 
 #include "commands.hpp"
+#include "output_folder.hpp"
 
 namespace dcl::apps {
 
@@ -49,6 +50,7 @@ struct OdometryOptions {
   bool no_loops = false;                 ///< switch the intra-robot loop closure off
   std::size_t max_frames = 0;            ///< 0: all frames
   std::size_t threads = 0;               ///< 0: all cores
+  bool force = false;                    ///< replace --out even when it holds other files
 };
 
 /// One robot of a dataset: its scans and, when the dataset has it, its ground truth.
@@ -266,6 +268,9 @@ void printSummary(const Json& m) {
 }
 
 void runOdometry(const OdometryOptions& o, const AppConfig& config) {
+  OutputFolder out(o.out, o.force);
+  out.requireOutside(o.dataset, "the dataset");
+  if (!o.external.empty()) out.requireOutside(o.external, "--external");
   const RobotData data = openRobot(o.dataset, o.robot);
   const std::size_t threads = o.threads > 0 ? o.threads : tbb::info::default_concurrency();
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
@@ -288,7 +293,10 @@ void runOdometry(const OdometryOptions& o, const AppConfig& config) {
         {"odometry", accuracyJson(log.poses, *data.ground_truth)},
         {"smoothed", accuracyJson(smoothedFrames(log, mapper), *data.ground_truth)}};
   }
-  writeOutputs(o, log, mapper, metrics);
+  OdometryOptions staged = o;
+  staged.out = out.path();
+  writeOutputs(staged, log, mapper, metrics);
+  out.commit();
   printSummary(metrics);
   fmt::print("wrote {}/{{trajectory.tum,trajectory.kitti,odometry.tum,keyframes/,metrics.json}}\n",
              o.out);
@@ -373,6 +381,7 @@ void addOdometryCommand(CLI::App& app, const AppConfig& config) {
                   "bag topic (nav_msgs/Odometry, PoseStamped)");
   cmd->add_option("--external-times", o->external_times, "times file of a KITTI pose file");
   cmd->add_flag("--no-loops", o->no_loops, "no intra-robot loop closure");
+  addForceFlag(*cmd, o->force);
   cmd->callback([o, &config] { runOdometry(*o, config); });
 }
 

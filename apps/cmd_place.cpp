@@ -23,6 +23,7 @@
 #include <dcl/sim/sim_source.hpp>
 
 #include "commands.hpp"
+#include "output_folder.hpp"
 
 namespace dcl::apps {
 
@@ -40,6 +41,7 @@ struct PlaceOptions {
   std::size_t every = 1;                ///< keep every N-th keyframe of each robot
   std::size_t max_keyframes = 0;        ///< per robot, 0: all
   bool json = false;                    ///< print metrics.json instead of the summary
+  bool force = false;                   ///< replace --out even when it holds other files
 };
 
 /// Ground-truth keyframes of one robot: the paper's selector (1 m or 0.2 rad
@@ -290,6 +292,8 @@ void printSummary(const Json& m) {
 
 void runBenchPlace(const PlaceOptions& o, const PlaceSection& section) {
   if (o.every == 0) throw core::Error("--every must be at least 1");
+  OutputFolder out(o.out, o.force);
+  out.requireOutside(o.dataset, "the dataset");
   const io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   place::DescriptorConfig config = section.descriptor;
   const auto kind = place::parseDescriptorKind(o.descriptor);
@@ -303,7 +307,10 @@ void runBenchPlace(const PlaceOptions& o, const PlaceSection& section) {
   const auto sequence = kittiSequence(spec.name);
   const auto published = publishedCurve(o.data.empty() ? defaultDataDir() : o.data, sequence);
   const Json metrics = metricsJson(spec, o, d, e, published, sequence);
-  writeOutputs(o, spec, e, published, sequence, metrics);
+  PlaceOptions staged = o;
+  staged.out = out.path();
+  writeOutputs(staged, spec, e, published, sequence, metrics);
+  out.commit();
   if (o.json) return fmt::print("{}\n", metrics.dump(2));
   printSummary(metrics);
   fmt::print("wrote {}/{{pr.csv,pr.svg,queries.csv,metrics.json}}\n", o.out);
@@ -328,6 +335,7 @@ void addBenchPlaceCommand(CLI::App& bench, const AppConfig& app_config) {
   cmd->add_option("--max-keyframes", o->max_keyframes, "keyframes per robot (0: all)")
       ->capture_default_str();
   cmd->add_flag("--json", o->json, "print the result as JSON");
+  addForceFlag(*cmd, o->force);
   cmd->callback([o, &app_config] { runBenchPlace(*o, app_config.place); });
 }
 

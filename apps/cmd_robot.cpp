@@ -35,6 +35,7 @@
 #include <dcl/sim/sim_source.hpp>
 
 #include "commands.hpp"
+#include "output_folder.hpp"
 #include "process.hpp"
 #include "robot_outputs.hpp"
 
@@ -337,10 +338,11 @@ void runRobot(const RobotOptions& o, const AppConfig& config) {
   io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const std::size_t index = robotIndex(spec, o.robot);
   if (index > 254) throw core::Error("a swarm holds robots 0..254: '" + o.robot + "' is past it");
+  const std::string folder = o.out + "/" + o.robot;
+  requireWritableFolder(folder);  // before the run, not after it
   RobotPlayer player(o, std::move(spec), index, robotConfig(config));
   const bool finished = player.run();
   const RobotOutputs outputs = player.outputs(!finished);
-  const std::string folder = o.out + "/" + o.robot;
   writeRobotOutputs(folder, outputs);
   if (o.json)
     fmt::print("{}\n", toJson(outputs.report).dump(2));

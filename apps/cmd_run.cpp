@@ -32,6 +32,7 @@
 #include <dcl/swarm/swarm_run.hpp>
 
 #include "commands.hpp"
+#include "output_folder.hpp"
 #include "robot_outputs.hpp"
 #include "run_swarm.hpp"
 
@@ -48,6 +49,7 @@ struct RunOptions {
   double settle = swarm::SwarmConfig{}.settle;  ///< s at most after the data while robots optimise
   std::vector<std::string> leave;               ///< NAME@SECONDS, robots that leave mid-run
   bool json = false;
+  bool force = false;  ///< replace --out even when it holds files of another program
 };
 
 /// The robots that leave mid-run, by name, from `--leave NAME@SECONDS`
@@ -331,7 +333,7 @@ void printRunTable(const Json& m, const std::string& out) {
 Json runSwarmDataset(const std::string& dataset, const std::string& out, std::size_t max_frames,
                      int threads, double settle, const AppConfig& config,
                      const std::vector<std::string>& leave) {
-  const RunOptions o{dataset, out, max_frames, threads, settle, leave, false};
+  const RunOptions o{dataset, out, max_frames, threads, settle, leave, false, false};
   const io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const std::map<std::string, double> leave_times = parseLeaves(o.leave, spec);
   std::vector<swarm::SwarmMember> members = membersOf(spec, leave_times);
@@ -383,12 +385,16 @@ void addRunCommand(CLI::App& app, const AppConfig& config) {
                   "(a crash, a dead battery); repeat for several")
       ->type_name("NAME@SECONDS");
   cmd->add_flag("--json", o->json, "print metrics.json instead of the table");
+  addForceFlag(*cmd, o->force);
   cmd->callback([o, &config] {
     if (o->threads < 0) throw core::Error("--threads must be at least 0");
-    const Json m =
-        runSwarmDataset(o->dataset, o->out, o->max_frames, o->threads, o->settle, config, o->leave);
+    OutputFolder out(o->out, o->force);
+    out.requireOutside(o->dataset, "the dataset");
+    const Json m = runSwarmDataset(o->dataset, out.path(), o->max_frames, o->threads, o->settle,
+                                   config, o->leave);
+    out.commit();
     if (o->json) return fmt::print("{}\n", m.dump(2));
-    printRunTable(m, o->out);
+    printRunTable(m, out.out());
   });
 }
 

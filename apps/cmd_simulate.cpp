@@ -25,6 +25,7 @@
 #include <dcl/sim/sim_source.hpp>
 
 #include "commands.hpp"
+#include "output_folder.hpp"
 
 namespace dcl::apps {
 
@@ -47,6 +48,7 @@ struct SimulateOptions {
   bool no_motion_distortion = false;  ///< scans without motion distortion
   bool no_noise = false;              ///< scans without range noise and dropout
   bool perfect_lasers = false;        ///< every robot's lasers exactly on the published table
+  bool force = false;                 ///< replace --out even when it holds other files
 };
 
 struct BenchSimOptions {
@@ -84,7 +86,9 @@ std::string_view lasersOf(const io::SimSpec& sim) {
   return "each robot its own unit with calibration errors";
 }
 
-void printSummary(const sim::Preset& preset, const io::DatasetSpec& spec, const std::string& out) {
+/// Describes the dataset written into `out`, which will be `shown`.
+void printSummary(const sim::Preset& preset, const io::DatasetSpec& spec, const std::string& out,
+                  const std::string& shown) {
   fmt::print("dataset '{}' ({}): {} world, seed {}, {} at {:.2f} m\n", spec.name,
              preset.description, preset.world, preset.seed, spec.sensor, spec.mount_height);
   fmt::print("  lasers: {}\n", lasersOf(*spec.sim));
@@ -97,10 +101,12 @@ void printSummary(const sim::Preset& preset, const io::DatasetSpec& spec, const 
     scans += r.T_world_sensor.size();
   }
   fmt::print("  {} robots, {} scans (regenerated on demand); {} on disk in {}\n",
-             preset.routes.size(), scans, humanBytes(folderBytes(out)), out);
+             preset.routes.size(), scans, humanBytes(folderBytes(out)), shown);
 }
 
-void exportScans(const io::DatasetSpec& spec, const std::string& out, sim::ExportFormat format) {
+/// Exports the scans into `out`, which will be `shown`.
+void exportScans(const io::DatasetSpec& spec, const std::string& out, const std::string& shown,
+                 sim::ExportFormat format) {
   const std::string folder = (fs::path(out) / std::string(sim::toString(format))).string();
   std::unique_ptr<core::ProgressBar> bar;
   const auto start = Clock::now();
@@ -111,8 +117,8 @@ void exportScans(const io::DatasetSpec& spec, const std::string& out, sim::Expor
       });
   if (bar) bar->finish();
   fmt::print("exported {} scans ({} points, {}) as {} to {} in {:.1f} s\n", result.scans,
-             result.points, humanBytes(result.bytes), sim::toString(format), folder,
-             seconds(start));
+             result.points, humanBytes(result.bytes), sim::toString(format),
+             (fs::path(shown) / std::string(sim::toString(format))).string(), seconds(start));
 }
 
 std::optional<sim::ExportFormat> exportFormat(const std::string& name) {
@@ -138,12 +144,14 @@ void runSimulate(const SimulateOptions& o) {
   sim::Preset preset = sim::makePreset(
       o.preset, {.data_dir = o.data, .seed = o.seed, .robots = o.robots, .sensor = o.sensor});
   cutRoutes(preset, o.max_scans);
-  const io::DatasetSpec spec = sim::writeSimDataset(o.out, preset,
+  OutputFolder out(o.out, o.force);
+  const io::DatasetSpec spec = sim::writeSimDataset(out.path(), preset,
                                                     {.motion_distortion = !o.no_motion_distortion,
                                                      .noise = !o.no_noise,
                                                      .calibration_error = !o.perfect_lasers});
-  printSummary(preset, spec, o.out);
-  if (format) exportScans(spec, o.out, *format);
+  printSummary(preset, spec, out.path(), out.out());
+  if (format) exportScans(spec, out.path(), out.out(), *format);
+  out.commit();
 }
 
 void runPreview(const std::string& folder) {
@@ -286,6 +294,7 @@ void addSimulateCommand(CLI::App& app) {
   cmd->add_flag("--perfect-lasers", o->perfect_lasers,
                 "every robot's lasers exactly where the published beam table says (no "
                 "calibration error)");
+  addForceFlag(*cmd, o->force);
   cmd->callback([o] { runSimulateCommand(*o); });
 }
 

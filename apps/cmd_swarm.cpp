@@ -37,6 +37,7 @@
 #include <dcl/robot/frames.hpp>
 
 #include "commands.hpp"
+#include "output_folder.hpp"
 #include "process.hpp"
 #include "robot_outputs.hpp"
 
@@ -64,6 +65,7 @@ struct SwarmOptions {
   /// reads the dataset and builds its world before the clock starts.
   double start_delay = 3.0;
   bool json = false;
+  bool force = false;  ///< replace --out even when it holds files of another program
 };
 
 double since(SteadyClock::time_point start) {
@@ -454,8 +456,12 @@ void printTable(const Json& m, const std::string& out) {
 
 // ---- the command ----------------------------------------------------------------------
 
-void runSwarmProcesses(const SwarmOptions& o, const GlobalOptions& g) {
-  validate(o);
+void runSwarmProcesses(const SwarmOptions& options, const GlobalOptions& g) {
+  validate(options);
+  OutputFolder out(options.out, options.force);
+  out.requireOutside(options.dataset, "the dataset");
+  SwarmOptions o = options;  // the robots write into the staging folder
+  o.out = out.path();
   const io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const std::vector<std::size_t> robots = selectRobots(spec, o.robots);
   const std::optional<double> end = expectedEnd(spec, robots, o);
@@ -480,23 +486,26 @@ void runSwarmProcesses(const SwarmOptions& o, const GlobalOptions& g) {
     fmt::print(
         "swarm '{}': {} robot processes over DDS on {}, rate {}, logs in {}/NAME/robot.log\n",
         swarm, children.size(), o.interface.empty() ? "the default interface" : o.interface, o.rate,
-        o.out);
+        out.out());
   std::fflush(stdout);
 
   const std::optional<std::size_t> failed = waitAll(children, end, epoch, o.rate);
+  // A failed robot's last log line, before its log moves with the folder.
+  const std::string reason = failed ? lastLine(children[*failed].log) : std::string();
+  if (stopSignal() != 0 || failed) out.commit();  // the logs, and what the robots wrote
   if (stopSignal() != 0) {
     std::fprintf(stderr,
                  "dcl-slam swarm: stopped by signal %d; the robots' outputs so far are in %s\n",
-                 stopSignal(), o.out.c_str());
+                 stopSignal(), out.out().c_str());
     throw CLI::RuntimeError(128 + stopSignal());
   }
   if (failed) {
     const Child& c = children[*failed];
-    const std::string reason = lastLine(c.log);
-    throw core::Error(fmt::format(
-        "robot '{}' (pid {}) failed with {}{}; the others were stopped "
-        "(its log: {})",
-        c.name, c.pid, describeStatus(*c.status), reason.empty() ? "" : ": " + reason, c.log));
+    throw core::Error(
+        fmt::format("robot '{}' (pid {}) failed with {}{}; the others were stopped "
+                    "(its log: {}/{}/robot.log)",
+                    c.name, c.pid, describeStatus(*c.status), reason.empty() ? "" : ": " + reason,
+                    out.out(), c.name));
   }
 
   const SwarmRun run = readSwarm(spec, robots, o.out);
@@ -505,9 +514,10 @@ void runSwarmProcesses(const SwarmOptions& o, const GlobalOptions& g) {
   io::writeFileAtomic(o.out + "/metrics.json",
                       [&](std::ostream& out) { out << m.dump(2) << "\n"; });
   io::writeFileAtomic(o.out + "/report.html",
-                      [&](std::ostream& out) { out << eval::reportHtml(run.summary, metrics); });
+                      [&](std::ostream& s) { s << eval::reportHtml(run.summary, metrics); });
+  out.commit();
   if (o.json) return fmt::print("{}\n", m.dump(2));
-  printTable(m, o.out);
+  printTable(m, out.out());
 }
 
 }  // namespace
@@ -540,6 +550,7 @@ void addSwarmCommand(CLI::App& app, const AppConfig& config) {
                   "s from now to the swarm clock's start: the robots load their data first")
       ->capture_default_str();
   cmd->add_flag("--json", o->json, "print metrics.json instead of the table");
+  addForceFlag(*cmd, o->force);
   cmd->callback([o, &app] { runSwarmProcesses(*o, globalOptions(app)); });
 }
 

@@ -11,8 +11,47 @@
 
 #include "app_config.hpp"
 #include "commands.hpp"
+#include "output_folder.hpp"
 
 namespace {
+
+/// `text` safe for a terminal on one line: control characters, and bytes that
+/// are not UTF-8 (a binary file's content quoted in a message), as \xNN.
+std::string printable(std::string_view text) {
+  std::string out;
+  for (std::size_t i = 0; i < text.size();) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    std::size_t length = c < 0x80           ? 1
+                         : (c >> 5) == 0x6  ? 2
+                         : (c >> 4) == 0xe  ? 3
+                         : (c >> 3) == 0x1e ? 4
+                                            : 0;
+    for (std::size_t k = 1; k < length; ++k) {
+      if (i + k >= text.size() || (static_cast<unsigned char>(text[i + k]) >> 6) != 0x2) length = 0;
+    }
+    if (length == 0 || c < 0x20 || c == 0x7f) {
+      constexpr std::string_view kHex = "0123456789abcdef";
+      out.append("\\x").push_back(kHex[c >> 4]);
+      out.push_back(kHex[c & 0xf]);
+      ++i;
+      continue;
+    }
+    out.append(text.substr(i, length));
+    i += length;
+  }
+  return out;
+}
+
+/// "run " for `dcl-slam run`, "bench loops " ...: the command the user typed.
+std::string helpPath(const CLI::App& app) {
+  std::string path;
+  for (const CLI::App* sub = &app; sub != nullptr;) {
+    const auto chosen = sub->get_subcommands();
+    sub = chosen.empty() ? nullptr : chosen.front();
+    if (sub != nullptr) path.append(sub->get_name()).append(" ");
+  }
+  return path;
+}
 
 /// The value of `--name VALUE` or `--name=VALUE` in argv, if given (the last one wins).
 std::optional<std::string> findOption(int argc, char** argv, std::string_view name) {
@@ -44,6 +83,7 @@ dcl::apps::AppConfig preloadConfig(int argc, char** argv) {
 }
 
 int run(int argc, char** argv) {
+  dcl::apps::sayWhatAnInterruptDoes();
   dcl::apps::AppConfig config = preloadConfig(argc, argv);
   CLI::App app{"dcl-slam: distributed collaborative LiDAR SLAM for robot swarms", "dcl-slam"};
   app.require_subcommand(1);
@@ -79,8 +119,18 @@ int run(int argc, char** argv) {
   dcl::apps::addBenchBoundCommand(*bench);
   try {
     app.parse(argc, argv);
-  } catch (const CLI::ParseError& e) {
+  } catch (const CLI::CallForHelp& e) {
     return app.exit(e);
+  } catch (const CLI::CallForAllHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::CallForVersion& e) {
+    return app.exit(e);
+  } catch (const CLI::RuntimeError& e) {
+    return e.get_exit_code();  // a command's own exit code, its message already printed
+  } catch (const CLI::ParseError& e) {
+    std::fprintf(stderr, "dcl-slam: error: %s (see dcl-slam %s--help)\n",
+                 printable(e.what()).c_str(), helpPath(app).c_str());
+    return 2;
   }
   return 0;
 }
@@ -91,9 +141,9 @@ int main(int argc, char** argv) {
   try {
     return run(argc, argv);
   } catch (const dcl::core::Error& e) {
-    std::fprintf(stderr, "dcl-slam: error: %s\n", e.what());
+    std::fprintf(stderr, "dcl-slam: error: %s\n", printable(e.what()).c_str());
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "dcl-slam: unexpected error: %s\n", e.what());
+    std::fprintf(stderr, "dcl-slam: error: unexpected: %s\n", printable(e.what()).c_str());
   }
   return 1;
 }

@@ -6,11 +6,13 @@
 #include <mutex>
 #include <string>
 #include <string_view>
+#include <utility>
 
 #include <dds/dds.h>
 
 #include <dcl/comm/dds_transport.hpp>
 #include <dcl/core/error.hpp>
+#include <dcl/core/log.hpp>
 
 #include "envelope.h"
 
@@ -44,8 +46,49 @@ std::size_t index(Qos qos) {
   return qos == Qos::reliable ? 0 : 1;
 }
 
+/// Cyclone's own log lines, which it writes to stderr by default: kept
+/// instead, so that a failed call names Cyclone's reason in our one error
+/// line, and passed to our log at debug level.
+class CycloneLog {
+ public:
+  /// Installs the sinks; call before the first DDS call.
+  static CycloneLog& instance() {
+    static CycloneLog log;
+    return log;
+  }
+
+  /// What Cyclone logged since the last take, on one line.
+  std::string take() {
+    const std::lock_guard lock(mutex_);
+    return std::exchange(lines_, {});
+  }
+
+ private:
+  CycloneLog() {
+    dds_set_log_sink(&CycloneLog::onLog, this);
+    dds_set_trace_sink(&CycloneLog::onTrace, nullptr);
+  }
+
+  static void onLog(void* self, const dds_log_data_t* data) {
+    auto& log = *static_cast<CycloneLog*>(self);
+    std::string_view text(data->message, data->size);
+    while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.remove_suffix(1);
+    spdlog::debug("Cyclone DDS: {}", text);
+    const std::lock_guard lock(log.mutex_);
+    if (log.lines_.size() < kMaxKept)
+      log.lines_.append(log.lines_.empty() ? "" : "; ").append(text);
+  }
+  static void onTrace(void*, const dds_log_data_t*) {}
+
+  static constexpr std::size_t kMaxKept = 1000;
+  std::mutex mutex_;
+  std::string lines_;
+};
+
 [[noreturn]] void failCall(const std::string& call, dds_return_t rc) {
-  throw core::Error("DDS: " + call + " failed: " + dds_strretcode(rc));
+  const std::string cyclone = CycloneLog::instance().take();
+  throw core::Error("DDS: " + call + " failed: " + dds_strretcode(rc) +
+                    (cyclone.empty() ? "" : " (Cyclone DDS: " + cyclone + ")"));
 }
 
 /// Returns `entity`, or throws naming `call` when it is an error code.
@@ -82,6 +125,7 @@ class DomainRegistry {
   }
 
   void acquire(std::uint32_t domain, const std::string& interface) {
+    CycloneLog::instance().take();  // sinks in place, and nothing stale in them
     const std::lock_guard lock(mutex_);
     auto it = domains_.find(domain);
     if (it == domains_.end()) {

@@ -7,6 +7,7 @@ import csv
 import json
 import math
 import os
+import random
 import re
 import shutil
 import signal
@@ -186,7 +187,7 @@ class Convert(unittest.TestCase):
         run("convert", bag, self.path("scans"), "--topic", "/velodyne_points",
             "--cloud-format", "pcd", "--encoding", "ascii")
         names = sorted(os.listdir(self.path("scans")))
-        self.assertEqual(names, ["000000.pcd", "000001.pcd", "000002.pcd", "times.txt"])
+        self.assertEqual(names, [".dcl-slam", "000000.pcd", "000001.pcd", "000002.pcd", "times.txt"])
         with open(self.path("scans/times.txt")) as f:
             self.assertEqual(len(f.read().split()), 3)
         with open(self.path("scans/000000.pcd")) as f:
@@ -579,6 +580,33 @@ class Errors(unittest.TestCase):
         code, _, err = run("convert", scan, "/tmp/x.xyz", check=False)
         self.assertNotEqual(code, 0)
         self.assertIn(".xyz", err)
+
+    def test_command_line_mistakes_get_the_same_one_line(self):
+        for args, named, command in ((["run", "--dataset", "d", "--bogus"], "--bogus", "run "),
+                                     (["eval", "ate", "--gt"], "--gt", "eval ate "),
+                                     (["pgo"], "--g2o", "pgo "),
+                                     (["nonsense"], "subcommand", "")):
+            with self.subTest(args=args):
+                code, out, err = run(*args, check=False)
+                self.assertEqual(code, 2)
+                lines = err.strip().splitlines()
+                self.assertEqual(len(lines), 1, err)
+                self.assertTrue(lines[0].startswith("dcl-slam: error: "), err)
+                self.assertIn(named, lines[0])
+                self.assertTrue(lines[0].endswith(f"(see dcl-slam {command}--help)"), err)
+
+    def test_binary_bytes_in_a_message_are_escaped(self):
+        with tempfile.NamedTemporaryFile("wb", suffix=".txt", delete=False) as f:
+            f.write(b"1 2 \x1b[31m\x07\xff\xfe 4 5 6 7 8\n")
+        try:
+            code, _, err = run("eval", "ate", "--gt", f.name, "--est", f.name, check=False)
+        finally:
+            os.unlink(f.name)
+        self.assertEqual(code, 1)
+        self.assertNotIn("\x1b", err)
+        self.assertNotIn("\x07", err)
+        self.assertIn("\\x1b", err)
+        self.assertEqual(len(err.strip().splitlines()), 1)
 
 
 class Simulate(unittest.TestCase):
@@ -1192,6 +1220,165 @@ class Ping(unittest.TestCase):
                 self.assertEqual(code, 1)
                 self.assertIn(named, err)
                 self.assertEqual(len(err.strip().splitlines()), 1)
+
+    def test_cyclones_own_complaints_come_in_our_one_line(self):
+        for args, env, named in (
+                (["--interface", "nope0"], {}, "nope0: does not match an available interface"),
+                ([], {"CYCLONEDDS_URI": "garbage<<"}, "can't open configuration file garbage<<")):
+            with self.subTest(args=args, env=env):
+                proc = subprocess.run([DCL_SLAM, "ping", "--robot", "0", "--duration", "1",
+                                       "--domain", "154", *args], capture_output=True, text=True,
+                                      timeout=60, env={**os.environ, **env})
+                self.assertEqual(proc.returncode, 1)
+                lines = proc.stderr.strip().splitlines()
+                self.assertEqual(len(lines), 1, proc.stderr)
+                self.assertTrue(lines[0].startswith("dcl-slam: error: DDS: "), proc.stderr)
+                self.assertIn(named, lines[0])
+
+
+class OutputFolders(unittest.TestCase):
+    """Every command that writes an output folder: it is checked before the
+    work, never mixes two runs, never replaces a folder of other files
+    without --force, and a kill at any moment leaves it whole."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.dataset = os.path.join(cls.tmp.name, "ds")
+        run("simulate", "--preset", "demo", "--robots", "2", "--max-scans", "40", "--out",
+            cls.dataset)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def commands(self, out):
+        """Each command with a small job, writing into out."""
+        ds = self.dataset
+        return {
+            "run": ["run", "--dataset", ds, "--out", out, "--max-frames", "20"],
+            "simulate": ["simulate", "--preset", "demo", "--robots", "1", "--max-scans", "2",
+                         "--out", out],
+            "odometry": ["odometry", "--dataset", ds, "--out", out, "--max-frames", "10"],
+            "bench place": ["bench", "place", "--dataset", ds, "--out", out],
+            "bench loops": ["bench", "loops", "--dataset", ds, "--out", out],
+        }
+
+    def snapshot(self, folder):
+        """{relative path: bytes} of every file under folder (hidden ones too)."""
+        files = {}
+        for root, _, names in os.walk(folder):
+            for name in names:
+                full = os.path.join(root, name)
+                with open(full, "rb") as f:
+                    files[os.path.relpath(full, folder)] = f.read()
+        return files
+
+    def assertOneErrorLine(self, code, err, *fragments):
+        self.assertNotEqual(code, 0)
+        lines = err.strip().splitlines()
+        self.assertEqual(len(lines), 1, err)
+        self.assertTrue(lines[0].startswith("dcl-slam: error: "), err)
+        for fragment in fragments:
+            self.assertIn(fragment, lines[0])
+
+    def test_a_folder_of_other_files_is_refused_unless_forced(self):
+        for name in self.commands(""):
+            with self.subTest(command=name):
+                out = os.path.join(self.tmp.name, "theirs-" + name.replace(" ", "-"))
+                os.makedirs(out)
+                with open(os.path.join(out, "thesis.tex"), "w") as f:
+                    f.write("three years of work")
+                before = self.snapshot(out)
+                code, _, err = run(*self.commands(out)[name], check=False)
+                self.assertOneErrorLine(code, err, out, "--force")
+                self.assertEqual(self.snapshot(out), before)
+                run(*self.commands(out)[name], "--force")
+                self.assertNotIn("thesis.tex", os.listdir(out))
+                self.assertIn(".dcl-slam", os.listdir(out))
+
+    def test_a_second_run_replaces_the_first_whole(self):
+        for name in self.commands(""):
+            with self.subTest(command=name):
+                out = os.path.join(self.tmp.name, "twice-" + name.replace(" ", "-"))
+                run(*self.commands(out)[name])
+                with open(os.path.join(out, "left-by-the-first.txt"), "w") as f:
+                    f.write("x")
+                run(*self.commands(out)[name])
+                self.assertNotIn("left-by-the-first.txt", os.listdir(out))
+                beside = [f for f in os.listdir(self.tmp.name) if ".partial-" in f]
+                self.assertEqual(beside, [])
+
+    def test_an_output_place_that_cannot_be_written_fails_before_the_work(self):
+        a_file = os.path.join(self.tmp.name, "a-file")
+        with open(a_file, "w") as f:
+            f.write("x")
+        for name in self.commands(""):
+            for out, fragment in ((a_file, "is a file, not a folder"),
+                                  (os.path.join(a_file, "sub"), "cannot create"),
+                                  ("/proc/dcl-slam-test/out", "cannot create")):
+                with self.subTest(command=name, out=out):
+                    start = time.monotonic()
+                    code, _, err = run(*self.commands(out)[name], check=False)
+                    self.assertOneErrorLine(code, err, fragment)
+                    self.assertLess(time.monotonic() - start, 5.0)
+        with open(a_file) as f:
+            self.assertEqual(f.read(), "x")
+
+    def test_the_dataset_inside_the_output_folder_is_refused(self):
+        for name in ("run", "odometry", "bench place", "bench loops"):
+            with self.subTest(command=name):
+                code, _, err = run(*self.commands(self.tmp.name)[name], "--force", check=False)
+                self.assertOneErrorLine(code, err, "lies in --out")
+                self.assertTrue(os.path.exists(os.path.join(self.dataset, "dataset.yaml")))
+
+    def test_an_interrupt_says_the_folder_keeps_what_it_held(self):
+        out = os.path.join(self.tmp.name, "interrupted")
+        run(*self.commands(out)["run"])
+        before = self.snapshot(out)
+        proc = subprocess.Popen([DCL_SLAM, *self.commands(out)["run"][:-2]],
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        time.sleep(0.3)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+        self.assertEqual(proc.returncode, 128 + signal.SIGINT, err)
+        self.assertIn(f"dcl-slam: interrupted before its outputs were written; {out} keeps "
+                      "what it held", err)
+        self.assertEqual(self.snapshot(out), before)
+
+    def test_a_kill_at_any_moment_leaves_one_whole_run(self):
+        out = os.path.join(self.tmp.name, "killed")
+        args = ["run", "--dataset", self.dataset, "--out", out]
+        run(*args, "--max-frames", "20")
+        old = self.snapshot(out)
+        start = time.monotonic()
+        run(*args, "--max-frames", "30")
+        new_files = set(self.snapshot(out))
+        full = time.monotonic() - start
+        run(*args, "--max-frames", "20")
+        rng = random.Random(29)
+        outcomes = set()
+        for trial in range(10):
+            # Spread over the run, the last ones in its final writes.
+            delay = full * (trial / 10 + 0.1 * rng.random())
+            proc = subprocess.Popen([DCL_SLAM, *args, "--max-frames", "30"],
+                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            time.sleep(delay)
+            proc.kill()
+            proc.wait()
+            now = self.snapshot(out)
+            if now == old:
+                outcomes.add("untouched")
+            else:
+                self.assertEqual(set(now), new_files, f"trial {trial} after {delay:.2f} s")
+                json.loads(now["metrics.json"])
+                outcomes.add("new")
+                run(*args, "--max-frames", "20")  # back to the old run
+                old = self.snapshot(out)
+        self.assertIn("untouched", outcomes)
+        # What killed runs leave beside the folder goes with the next command.
+        run(*args, "--max-frames", "20")
+        self.assertEqual([f for f in os.listdir(self.tmp.name) if ".partial-" in f], [])
 
 
 class Run(unittest.TestCase):
