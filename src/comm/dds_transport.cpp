@@ -1,6 +1,7 @@
 #include <algorithm>
 #include <array>
 #include <atomic>
+#include <cstdlib>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -131,7 +132,11 @@ class DomainRegistry {
     if (it == domains_.end()) {
       dds_entity_t handle = 0;  // 0: created with the first participant, deleted with the last
       if (!interface.empty()) {
-        const std::string xml = interfaceXml(interface);
+        // The user's configuration (CYCLONEDDS_URI) first, ours after it: a
+        // domain made with a configuration of its own would ignore theirs.
+        const char* user = std::getenv("CYCLONEDDS_URI");
+        const std::string xml = (user != nullptr && *user != '\0' ? std::string(user) + "," : "") +
+                                interfaceXml(interface);
         handle = checked(dds_create_domain(domain, xml.c_str()),
                          "dds_create_domain(domain " + std::to_string(domain) + ", interface '" +
                              interface + "')");

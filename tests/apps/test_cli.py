@@ -1224,7 +1224,8 @@ class Ping(unittest.TestCase):
     def test_cyclones_own_complaints_come_in_our_one_line(self):
         for args, env, named in (
                 (["--interface", "nope0"], {}, "nope0: does not match an available interface"),
-                ([], {"CYCLONEDDS_URI": "garbage<<"}, "can't open configuration file garbage<<")):
+                ([], {"CYCLONEDDS_URI": "garbage<<"}, "can't open configuration file garbage<<"),
+                (["--interface", "lo"], {"CYCLONEDDS_URI": "<Bogus/>"}, "Bogus: unknown element")):
             with self.subTest(args=args, env=env):
                 proc = subprocess.run([DCL_SLAM, "ping", "--robot", "0", "--duration", "1",
                                        "--domain", "154", *args], capture_output=True, text=True,
