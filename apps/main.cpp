@@ -48,6 +48,10 @@ int run(int argc, char** argv) {
   CLI::App app{"dcl-slam: distributed collaborative LiDAR SLAM for robot swarms", "dcl-slam"};
   app.require_subcommand(1);
   app.fallthrough();  // global options may follow the subcommand
+  // A refused option reads as every other error: one line.
+  app.failure_message([](const CLI::App*, const CLI::Error& e) {
+    return std::string("dcl-slam: error: ") + e.what() + "\n";
+  });
   std::string config_path;
   app.add_option("--config", config_path, "YAML configuration file (see `config --dump`)");
   std::string log_level = config.log_level;
