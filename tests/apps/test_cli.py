@@ -526,6 +526,45 @@ class Odometry(DemoDataset):
         for name in ("trajectory.tum", "odometry.tum", "keyframes/poses.tum"):
             self.assertTrue(os.path.exists(os.path.join(out, name)), name)
 
+    def test_external_poses_on_another_clock_are_refused_before_anything_is_written(self):
+        # The ground truth in Unix time against scans stamped from the robot's start.
+        external = os.path.join(self.tmp.name, "unix_time.tum")
+        with open(os.path.join(self.dataset, "ground_truth", "b.tum")) as f, \
+                open(external, "w") as out:
+            for line in f:
+                t, rest = line.split(" ", 1)
+                out.write(f"{float(t) + 1.7e9!r} {rest}")
+        out = os.path.join(self.tmp.name, "unix_time")
+        code, _, err = run("odometry", "--dataset", self.dataset, "--robot", "b", "--out", out,
+                           "--max-frames", "20", "--external", external, check=False)
+        self.assertEqual(code, 1)
+        self.assertEqual(len(err.strip().splitlines()), 1, err)
+        self.assertRegex(err, r"external odometry: its poses span 17\d{8}\.\d+ \.\. 17\d{8}\.\d+ s, "
+                              r"the scans 0\.\d+ \.\. 1\.\d+ s")
+        self.assertFalse(os.path.exists(out))
+
+    def test_kitti_times_that_do_not_increase_are_refused_before_anything_is_written(self):
+        folder = os.path.join(self.tmp.name, "kitti")
+        os.makedirs(folder, exist_ok=True)
+        with open(os.path.join(folder, "dataset.yaml"), "w") as f:
+            f.write("format_version: 1\nname: kitti00\nsensor:\n  model: hdl64\n"
+                    "  mount_height: 1.73\nrobots:\n  - name: a\n    scans:\n      type: kitti\n"
+                    f"      folder: {os.path.join(DATA, 'lidar_scans', 'kitti_00', 'velodyne')}\n"
+                    "      times: times.txt\n")
+        times = os.path.join(folder, "times.txt")
+        out = os.path.join(self.tmp.name, "kitti_out")
+        for stamps, named in (("0\n0.1\n0.1\n", ":3: field 't': repeats the stamp 0.1 of line 2"),
+                              ("0\n0.2\n0.1\n", ":3: field 't': goes back before the stamp 0.2"),
+                              ("0\nnan\n", ":2: field 't': 'nan' is not finite")):
+            with self.subTest(stamps=stamps):
+                with open(times, "w") as f:
+                    f.write(stamps)
+                code, _, err = run("odometry", "--dataset", folder, "--out", out,
+                                   "--allow-outside-paths", check=False)
+                self.assertEqual(code, 1)
+                self.assertIn(times + named, err)
+                self.assertFalse(os.path.exists(out))
+
     def test_unknown_robot_is_named(self):
         code, _, err = run("odometry", "--dataset", self.dataset, "--robot", "zz", "--out",
                            os.path.join(self.tmp.name, "x"), check=False)
@@ -574,6 +613,37 @@ class Errors(unittest.TestCase):
                            "--align", "affine", check=False)
         self.assertNotEqual(code, 0)
         self.assertIn("affine", err)
+
+    def test_bad_numbers_are_refused_when_the_options_are_read(self):
+        gt = os.path.join(EVO, "KITTI_00_gt.txt")
+        ate = ["eval", "ate", "--gt", gt, "--est", gt, "--format", "kitti"]
+        rpe = ["eval", "rpe", "--gt", gt, "--est", gt, "--format", "kitti"]
+        cases = [
+            (ate + ["--reference-robot", "-1"], "--reference-robot: '-1' is negative"),
+            (ate + ["--reference-robot", "nan"], "--reference-robot: 'nan' is not a finite number"),
+            (ate + ["--max-diff", "nan"], "--max-diff: 'nan' is not a finite number"),
+            (ate + ["--max-diff", "-0.01"], "--max-diff: '-0.01' is negative"),
+            (rpe + ["--max-diff", "inf"], "--max-diff: 'inf' is not a finite number"),
+            (ate + ["--offset", "nan"], "--offset: 'nan' is not a finite number"),
+            (rpe + ["--offset", "-inf"], "--offset: '-inf' is not a finite number"),
+            (["bench", "loops", "--max-error-m", "nan"], "--max-error-m: 'nan' is not a finite"),
+            (["bench", "loops", "--max-error-m", "-1"], "--max-error-m: '-1' is negative"),
+            (["bench", "loops", "--max-error-deg", "nan"], "--max-error-deg: 'nan' is not a"),
+        ]
+        for command in (["odometry"], ["bench", "odometry"], ["bench", "loops"], ["run"],
+                        ["robot"], ["swarm"], ["bench", "system"]):
+            cases += [(command + ["--max-frames", "-1"], "--max-frames: '-1' is negative"),
+                      (command + ["--max-frames", "nan"], "--max-frames: 'nan' is not a finite")]
+        for args, named in cases:
+            with self.subTest(args=args):
+                code, _, err = run(*args, check=False)
+                self.assertNotEqual(code, 0)
+                self.assertTrue(err.startswith("dcl-slam: error: "), err)
+                self.assertEqual(len(err.strip().splitlines()), 1, err)
+                self.assertIn(named, err)
+        # A negative offset is a clock difference: allowed.
+        code, _, _ = run(*ate, "--offset", "-0.5", "--max-diff", "0")
+        self.assertEqual(code, 0)
 
     def test_unknown_scan_extension(self):
         scan = os.path.join(DATA, "lidar_scans", "kitti_00", "velodyne", "000000.bin")
@@ -827,6 +897,71 @@ def symbol_name(symbol):
     return chr(symbol >> 56) + str(symbol & ((1 << 56) - 1))
 
 
+IDENTITY_INFORMATION = " ".join("1" if r == c else "0" for r in range(6) for c in range(r, 6))
+
+
+def g2o_vertex(i):
+    return f"VERTEX_SE3:QUAT {i} {i} 0 0 0 0 0 1\n"
+
+
+def g2o_edge(a, b, information=IDENTITY_INFORMATION):
+    return f"EDGE_SE3:QUAT {a} {b} 1 0 0 0 0 0 1 {information}\n"
+
+
+# Graphs pgo and pcm refuse: {file: content}, and what the one error line names.
+CHAIN = g2o_vertex(0) + g2o_vertex(1) + g2o_edge(0, 1)
+A, B = ord("a") << 56, ord("b") << 56
+BAD_GRAPHS = (
+    ({"dangling.g2o": CHAIN + g2o_edge(1, 7)},
+     "dangling.g2o:4: field 'to': edge to vertex 7, which the file does not define"),
+    ({"zero.g2o": g2o_vertex(0) + g2o_vertex(1) + g2o_edge(0, 1, " ".join(["0"] * 21))},
+     "zero.g2o:3: field 'information': information matrix is zero"),
+    ({"negative.g2o": g2o_vertex(0) + g2o_vertex(1) + g2o_edge(0, 1, "-" + IDENTITY_INFORMATION)},
+     "negative.g2o:3: field 'information': information matrix is not positive semi-definite"),
+    ({"gap/0.g2o": g2o_vertex(A) + g2o_vertex(A + 1) + g2o_edge(A, A + 1),
+      "gap/2.g2o": g2o_vertex(B) + g2o_vertex(B + 1) + g2o_edge(B, B + 1)},
+     "gap: 1.g2o is missing"),
+    ({"twice/0.g2o": g2o_vertex(A) + g2o_vertex(A + 1) + g2o_edge(A, A + 1),
+      "twice/1.g2o": g2o_vertex(B) + g2o_vertex(A + 1) + g2o_edge(B, A + 1)},
+     "twice/1.g2o:2: field 'id': vertex a1 is defined in 0.g2o line 2 already"),
+    ({"loop_to_nowhere/0.g2o": g2o_vertex(A) + g2o_vertex(A + 1) + g2o_edge(A, A + 1)
+      + g2o_edge(A + 1, B + 5),
+      "loop_to_nowhere/1.g2o": g2o_vertex(B) + g2o_vertex(B + 1) + g2o_edge(B, B + 1)},
+     "loop_to_nowhere/0.g2o:4: field 'to': edge to vertex b5, which no robot graph of the "
+     "folder defines"),
+)
+
+
+def check_bad_graphs(test, *command):
+    """Each of BAD_GRAPHS makes `dcl-slam *command GRAPH` fail with one line naming it."""
+    for files, named in BAD_GRAPHS:
+        with tempfile.TemporaryDirectory() as tmp, test.subTest(graph=named):
+            for name, content in files.items():
+                os.makedirs(os.path.dirname(os.path.join(tmp, name)), exist_ok=True)
+                with open(os.path.join(tmp, name), "w") as f:
+                    f.write(content)
+            graph = os.path.join(tmp, next(iter(files)).split("/")[0])
+            code, out, err = run(*command, graph, check=False)
+            test.assertEqual(code, 1, out)
+            test.assertEqual(len(err.strip().splitlines()), 1, err)
+            test.assertTrue(err.startswith("dcl-slam: error: "), err)
+            test.assertIn(os.path.join(tmp, named), err)
+
+
+def check_unknown_lines_skipped(test, *command):
+    """A damaged line of a single file fails the command, and --skip-unknown-lines skips it."""
+    with tempfile.TemporaryDirectory() as tmp:
+        graph = os.path.join(tmp, "damaged.g2o")
+        with open(graph, "w") as f:
+            f.write(g2o_vertex(0) + "0410268 0.7588833\n" + g2o_vertex(1) + g2o_edge(0, 1))
+        code, _, err = run(*command, graph, check=False)
+        test.assertEqual(code, 1)
+        test.assertIn(f"{graph}:2: field 'tag'", err)
+        code, out, err = run(*command, graph, "--skip-unknown-lines", "--json")
+        test.assertEqual(json.loads(out)["graph"], graph)
+        test.assertIn(f"{graph}:2: skipped a line with an unknown tag", err)
+
+
 class Pcm(unittest.TestCase):
     """dcl-slam pcm: outlier rejection on the benchmark graphs with outlier loops."""
 
@@ -910,6 +1045,12 @@ class Pcm(unittest.TestCase):
         _, out, err = run("pcm", "--graph", graph, "--skip-unknown-lines", "--json")
         self.assertEqual(json.loads(out)["loops"], 20)
         self.assertIn("1.g2o:16", err)
+
+    def test_bad_graphs_are_named_by_file_and_line(self):
+        check_bad_graphs(self, "pcm", "--graph")
+
+    def test_unknown_lines_of_a_single_file_can_be_skipped(self):
+        check_unknown_lines_skipped(self, "pcm", "--graph")
 
     def test_reference_of_another_graph_is_refused(self):
         code, _, err = run(
@@ -1071,6 +1212,22 @@ class Pgo(unittest.TestCase):
                            "--robots", "2", check=False)
         self.assertEqual(code, 1)
         self.assertIn("4 robots already", err)
+
+    def test_bad_graphs_are_named_by_file_and_line_and_nothing_is_written(self):
+        out = os.path.join(tempfile.mkdtemp(), "result.g2o")
+        check_bad_graphs(self, "pgo", "--method", "centralized", "--out", out, "--g2o")
+        self.assertFalse(os.path.exists(out))
+
+    def test_unknown_lines_of_a_file_or_a_folder_can_be_skipped(self):
+        check_unknown_lines_skipped(self, "pgo", "--method", "centralized", "--g2o")
+        folder = os.path.join(OUTLIERS, "robust_distributed_mapper",
+                              "pairwise_consistency_maximization", "spoiled", "simulation",
+                              "example_2robots")
+        code, _, err = run("pgo", "--g2o", folder, check=False)
+        self.assertEqual(code, 1)
+        self.assertIn("1.g2o:16", err)
+        m = self.pgo("--g2o", folder, "--method", "centralized", "--skip-unknown-lines")
+        self.assertEqual(m["robots"], 2)
 
 
 if __name__ == "__main__":
