@@ -1,3 +1,4 @@
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
 #include <charconv>
@@ -22,6 +23,10 @@ using Entry = std::pair<int, int>;
 
 /// How far from 1 a printed quaternion's norm may be.
 constexpr double kQuaternionTolerance = 1e-2;
+/// How negative an information eigenvalue may be, relative to the largest
+/// magnitude, and still be the rounding of a printed semi-definite matrix (six
+/// significant digits move an eigenvalue of a 6x6 by up to about 3e-5 of it).
+constexpr double kIndefiniteTolerance = 1e-4;
 
 /// Rows/columns of x, y, yaw in the 6x6 tangent [x y z; roll pitch yaw].
 constexpr std::array<Index, 3> kPlanarAxes = {0, 1, 5};
@@ -85,8 +90,10 @@ class Parser {
   [[nodiscard]] Eigen::Vector3d vector3(const Tokens& t, std::size_t first,
                                         std::array<const char*, 3> names) const;
   template <int N, std::size_t K>
-  [[nodiscard]] Eigen::Matrix<double, N, N> symmetric(const Tokens& t, std::size_t first,
-                                                      const std::array<Entry, K>& order) const;
+  [[nodiscard]] Eigen::Matrix<double, N, N> readInformation(
+      const Tokens& t, std::size_t first, const std::array<Entry, K>& order) const;
+  template <int N>
+  void checkInformation(const Eigen::Matrix<double, N, N>& info) const;
   void addVertex(std::uint64_t vertex, const Eigen::Isometry3d& T_world_vertex);
   void addEdge(std::uint64_t from, std::uint64_t to, const Eigen::Isometry3d& T_from_to,
                const core::Matrix6d& information);
@@ -171,15 +178,35 @@ Eigen::Quaterniond Parser::quaternion(const Tokens& t, std::size_t first) const 
   return q;
 }
 
+/// The symmetric information matrix of an edge from its upper triangle, checked.
 template <int N, std::size_t K>
-Eigen::Matrix<double, N, N> Parser::symmetric(const Tokens& t, std::size_t first,
-                                              const std::array<Entry, K>& order) const {
+Eigen::Matrix<double, N, N> Parser::readInformation(const Tokens& t, std::size_t first,
+                                                    const std::array<Entry, K>& order) const {
   Eigen::Matrix<double, N, N> M = Eigen::Matrix<double, N, N>::Zero();
   for (std::size_t k = 0; k < K; ++k) {
     const auto [r, c] = order[k];
     M(r, c) = M(c, r) = number(t[first + k], infoName(order[k]));
   }
+  checkInformation(M);
   return M;
+}
+
+/// A cost r^T Omega r means something only for a positive semi-definite Omega
+/// (a negative direction rewards error); a zero one measures nothing. Only
+/// semi-definite is asked: planar graphs say nothing about some directions on
+/// purpose, and the solvers read those as unconstrained.
+template <int N>
+void Parser::checkInformation(const Eigen::Matrix<double, N, N>& info) const {
+  if (info.isZero(0.0))
+    in_.fail("information matrix is zero (the edge measures nothing)", "information");
+  using Solver = Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>>;
+  const auto eigenvalues = Solver(info, Eigen::EigenvaluesOnly).eigenvalues();
+  const double smallest = eigenvalues.minCoeff();
+  const double largest = eigenvalues.cwiseAbs().maxCoeff();
+  if (smallest >= -kIndefiniteTolerance * largest) return;
+  in_.fail("information matrix is not positive semi-definite (eigenvalue " +
+               formatNumber(smallest) + ", largest magnitude " + formatNumber(largest) + ")",
+           "information");
 }
 
 /// A 3x3 information over (x, y, theta) placed in the 6x6 tangent order.
@@ -206,12 +233,13 @@ void Parser::addVertex(std::uint64_t vertex, const Eigen::Isometry3d& T_world_ve
   if (!graph_.vertices.emplace(vertex, T_world_vertex).second) {
     in_.fail("vertex " + std::to_string(vertex) + " is defined twice", "id");
   }
+  graph_.vertex_lines.emplace(vertex, in_.lineNumber());
 }
 
 void Parser::addEdge(std::uint64_t from, std::uint64_t to, const Eigen::Isometry3d& T_from_to,
                      const core::Matrix6d& information) {
   if (from == to) in_.fail("edge joins vertex " + std::to_string(from) + " to itself", "to");
-  graph_.edges.push_back({from, to, T_from_to, information});
+  graph_.edges.push_back({from, to, T_from_to, information, in_.lineNumber()});
 }
 
 void Parser::vertexSe3(const Tokens& t) {
@@ -227,7 +255,7 @@ void Parser::edgeSe3(const Tokens& t) {
   const std::uint64_t from = id(t[1], "from");
   const std::uint64_t to = id(t[2], "to");
   const auto T = core::makePose(vector3(t, 3, {"x", "y", "z"}), quaternion(t, 6));
-  addEdge(from, to, T, symmetric<6>(t, 10, kOrder6));
+  addEdge(from, to, T, readInformation<6>(t, 10, kOrder6));
 }
 
 void Parser::vertexSe2(const Tokens& t) {
@@ -244,7 +272,7 @@ void Parser::edgeSe2(const Tokens& t) {
   const std::uint64_t from = id(t[1], "from");
   const std::uint64_t to = id(t[2], "to");
   const Eigen::Vector3d d = vector3(t, 3, {"dx", "dy", "dtheta"});
-  const Eigen::Matrix3d info = symmetric<3>(t, 6, kG2oOrder3);
+  const Eigen::Matrix3d info = readInformation<3>(t, 6, kG2oOrder3);
   addEdge(from, to, core::makePose2d(d.x(), d.y(), d.z()), liftPlanarInformation(info));
 }
 
@@ -254,7 +282,7 @@ void Parser::edge2(const Tokens& t) {
   const std::uint64_t from = id(t[1], "from");
   const std::uint64_t to = id(t[2], "to");
   const Eigen::Vector3d d = vector3(t, 3, {"dx", "dy", "dtheta"});
-  const Eigen::Matrix3d info = symmetric<3>(t, 6, kToroOrder3);
+  const Eigen::Matrix3d info = readInformation<3>(t, 6, kToroOrder3);
   addEdge(from, to, core::makePose2d(d.x(), d.y(), d.z()), liftPlanarInformation(info));
 }
 
@@ -279,7 +307,7 @@ void Parser::edge3(const Tokens& t) {
   const auto T =
       poseFromEuler(vector3(t, 3, {"x", "y", "z"}), vector3(t, 6, {"roll", "pitch", "yaw"}));
   const core::Matrix6d info =
-      t.size() == 9 ? core::Matrix6d::Identity() : symmetric<6>(t, 9, kOrder6);
+      t.size() == 9 ? core::Matrix6d::Identity() : readInformation<6>(t, 9, kOrder6);
   addEdge(from, to, T, info);
 }
 

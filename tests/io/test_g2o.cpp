@@ -419,6 +419,12 @@ const std::string kEdge =
     "EDGE_SE3:QUAT 0 1 0.341895 -0.0416997 0.0330394 -0.00189341 0.00395691 0.0899835 0.995934 "
     "10 0 0 0 0 0 10 0 0 0 0 10 0 0 0 400.021 0.00193512 2.06612 399.993 0.496977 99.203\n";
 
+std::string repeat(const std::string& text, std::size_t times) {
+  std::string out;
+  for (std::size_t i = 0; i < times; ++i) out += text;
+  return out;
+}
+
 std::vector<Corrupt> corruptGraphs() {
   return {
       {"empty", "", {":1:", "no vertices or edges"}},
@@ -442,6 +448,21 @@ std::vector<Corrupt> corruptGraphs() {
       {"edge3_count", "EDGE3 0 1 0 0 0 0 0 0 1 2 3\n", {":1:", "EDGE3 needs 8", "found 11"}},
       {"fix_without_id", kVertex + "FIX\n", {":2:", "FIX needs 1"}},
       {"equiv_cut", kVertex + "EQUIV 3\n", {":2:", "EQUIV needs 2"}},
+      {"zero_information",
+       kVertex + "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1" + repeat(" 0", 21) + "\n",
+       {":2:", "field 'information'", "information matrix is zero"}},
+      {"zero_planar_information",  // zero before the off-plane axes are filled in
+       "EDGE_SE2 0 1 1 0 0 0 0 0 0 0 0\n",
+       {":1:", "field 'information'", "is zero"}},
+      {"negative_information",
+       "EDGE_SE2 0 1 1 0 0 -1 0 0 -1 0 -1\n",
+       {":1:", "field 'information'", "not positive semi-definite", "eigenvalue -1"}},
+      {"indefinite_information",  // positive diagonal, eigenvalues 3, -1, 1
+       "EDGE_SE2 0 1 1 0 0 1 2 0 1 0 1\n",
+       {":1:", "field 'information'", "not positive semi-definite", "eigenvalue -0.99"}},
+      {"indefinite_toro_information",
+       "EDGE3 0 1 0 0 0 0 0 0 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 -5 0 1\n",
+       {":1:", "field 'information'", "eigenvalue -5"}},
   };
 }
 
@@ -457,6 +478,27 @@ TEST(G2o, CorruptFilesNameFileLineAndField) {
   }
   EXPECT_NE(test::fileError([&] { readG2o(dir.file("missing.g2o")); }).find("missing.g2o"),
             std::string::npos);
+}
+
+TEST(G2o, SemiDefiniteInformationIsKeptAndLinesAreRecorded) {
+  test::TempDir dir;
+  // No rotation information in the plane; nothing about z, roll and pitch in 3D
+  // (a planar graph written as 3D); an eigenvalue of -1e-7 that is rounding.
+  const std::string path = dir.write(
+      "semi.g2o", kVertex + "VERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n# comment\n" +
+                      "EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 4 0 0 0 0 0 4 0 0 0 0" + repeat(" 0", 9) +
+                      " 9\n" + "EDGE_SE3:QUAT 1 0 1 0 0 0 0 0 1 1 1.0000001 0 0 0 0 1" +
+                      repeat(" 0", 13) + " 1\n");
+  const G2oGraph graph = readG2o(path);
+  ASSERT_EQ(graph.edges.size(), 2u);
+  EXPECT_EQ(graph.edges[0].information(2, 2), 0.0);
+  EXPECT_EQ(graph.edges[0].information(5, 5), 9.0);
+  EXPECT_EQ(graph.edges[0].line, 4u);
+  EXPECT_EQ(graph.edges[1].line, 5u);
+  EXPECT_EQ(graph.vertex_lines, (std::map<std::uint64_t, std::size_t>{{0, 1}, {1, 2}}));
+  const std::string planar = dir.write("planar.g2o", "EDGE_SE2 0 1 1 0 0 1 0 0 1 0 0\n");
+  EXPECT_EQ(readG2o(planar).edges.front().information(5, 5), 0.0);
+  EXPECT_TRUE(readG2o(planar).vertex_lines.empty());  // chained
 }
 
 TEST(G2o, TruncatedOrCorruptedAnywhereNeverCrashes) {

@@ -11,6 +11,11 @@
 /// Information matrices are 6x6 in the project's tangent order [translation;
 /// rotation], the order of g2o's EDGE_SE3:QUAT. They are kept exactly as read
 /// (upper triangle mirrored): writing a graph back prints the same doubles.
+/// Each, as read (the 3x3 of a planar edge before it is lifted), must be
+/// positive semi-definite (no eigenvalue below -1e-4 times the largest
+/// magnitude, the rounding of printed digits) and not zero: a negative
+/// direction makes the cost reward error, a zero matrix measures nothing.
+/// Semi-definite is enough: planar graphs leave directions free on purpose.
 /// - EDGE_SE2 / EDGE2 (3x3 over x, y, theta) go to rows/columns (0, 1, 5). The
 ///   z, roll and pitch diagonal, which a 2D measurement says nothing about, gets
 ///   the largest diagonal entry of the 3x3 block (1 if that is not positive): as
@@ -49,6 +54,7 @@ struct G2oEdge {
   Eigen::Isometry3d T_from_to = Eigen::Isometry3d::Identity();
   /// Inverse covariance over the tangent [translation; rotation], symmetric.
   core::Matrix6d information = core::Matrix6d::Identity();
+  std::size_t line = 0;  ///< the line it was read from (1-based); 0 when not read from a file
 };
 
 /// A pose graph as a file holds it.
@@ -67,6 +73,8 @@ struct G2oGraph {
   bool chained = false;
   /// Lines skipped because of G2oReadOptions::skip_unknown_tags (1-based).
   std::vector<std::size_t> skipped_lines{};
+  /// The line each vertex was read from (1-based), by id; chained vertices have none.
+  std::map<std::uint64_t, std::size_t> vertex_lines{};
 
   /// True when `id` is a vertex of this graph.
   [[nodiscard]] bool hasVertex(std::uint64_t id) const { return vertices.contains(id); }
@@ -83,8 +91,11 @@ struct G2oReadOptions {
 
 /// Reads a g2o or TORO pose graph. Throws core::FileError naming the file, the
 /// line, the field and what was wrong: unknown tag, wrong number of fields,
-/// non-number, NaN or infinity, quaternion norm not within 1e-2 of 1, repeated
+/// non-number, NaN or infinity, quaternion norm not within 1e-2 of 1, an
+/// information matrix that is zero or not positive semi-definite, repeated
 /// vertex id, 2D and 3D tags mixed, or a file with neither vertices nor edges.
+/// An edge may name a vertex the file does not define (a per-robot file of a
+/// split graph names its neighbours'); whoever reads a whole graph checks that.
 G2oGraph readG2o(const std::string& path, const G2oReadOptions& options = {});
 
 /// Writes `graph` as g2o text (VERTEX_SE2/EDGE_SE2 when `is_2d`, else
