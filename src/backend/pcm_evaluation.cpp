@@ -4,6 +4,7 @@
 #include <map>
 #include <optional>
 #include <regex>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -12,6 +13,7 @@
 #include <dcl/backend/pcm_evaluation.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/core/log.hpp>
+#include <dcl/io/file.hpp>
 #include <dcl/io/g2o.hpp>
 
 namespace dcl::backend {
@@ -25,36 +27,187 @@ constexpr double kMinOdometryMatch = 0.9;
 /// (text files print a few significant digits).
 constexpr double kSameMeasurement = 1e-4;
 
-/// The robot files of a split graph, in numeric order.
-std::vector<fs::path> robotFiles(const std::string& folder) {
-  static const std::regex name("[0-9]+\\.g2o");
-  std::vector<std::pair<std::uint64_t, fs::path>> files;
+/// One g2o file of a graph, as read.
+struct GraphFile {
+  std::string path;
+  io::G2oGraph g2o;
+};
+
+/// Where a vertex is defined.
+struct VertexSource {
+  const GraphFile* file = nullptr;
+  std::size_t line = 0;
+};
+
+GraphFile readGraphFile(const std::string& path, const io::G2oReadOptions& options) {
+  GraphFile file{path, io::readG2o(path, options)};
+  for (const std::size_t line : file.g2o.skipped_lines) {
+    spdlog::warn("{}:{}: skipped a line with an unknown tag", path, line);
+  }
+  return file;
+}
+
+[[noreturn]] void failAt(const VertexSource& at, const std::string& what,
+                         std::optional<std::string> field = std::nullopt) {
+  throw core::FileError({.path = at.file->path, .line = at.line, .field = std::move(field)}, what);
+}
+
+std::string keyName(const core::PoseKey& key) {
+  return core::robotName(key.robot) + std::to_string(key.keyframe.value());
+}
+
+/// A vertex id as a user reads it: "b12" for a symbol, the number otherwise.
+std::string vertexName(std::uint64_t id) {
+  return core::PoseKey::isSymbol(id) ? keyName(core::PoseKey::unpack(id)) : std::to_string(id);
+}
+
+std::string describe(const VertexSource& at) {
+  return fmt::format("{} line {}", fs::path(at.file->path).filename().string(), at.line);
+}
+
+/// The number of a robot graph's file name "<number>.g2o"; none for other names.
+std::optional<std::uint64_t> robotNumber(const fs::path& path) {
+  static const std::regex pattern("[0-9]+\\.g2o");
+  const std::string name = path.filename().string();
+  if (!std::regex_match(name, pattern)) return std::nullopt;
+  const auto number =
+      io::parseNumber<std::uint64_t>(std::string_view(name).substr(0, name.size() - 4));
+  if (!number) throw core::FileError({.path = path.string()}, "robot number too large");
+  return number;
+}
+
+/// The robot files of a split graph, 0.g2o, 1.g2o, ... in numeric order: each
+/// a regular file, no number twice, none missing.
+std::vector<std::string> robotFiles(const std::string& folder) {
+  std::map<std::uint64_t, fs::path> files;
   for (const auto& entry : fs::directory_iterator(folder)) {
-    const std::string file = entry.path().filename().string();
-    if (entry.is_regular_file() && std::regex_match(file, name) && file.size() < 20) {
-      files.emplace_back(std::stoull(file), entry.path());
+    const auto number = robotNumber(entry.path());
+    if (!number) continue;
+    if (!entry.is_regular_file()) {
+      throw core::FileError({.path = entry.path().string()},
+                            "is not a regular file (a robot's graph must be one)");
+    }
+    const auto [it, added] = files.emplace(*number, entry.path());
+    if (!added) {
+      throw core::FileError(
+          {.path = folder},
+          fmt::format("{} and {} are both robot graph {}", it->second.filename().string(),
+                      entry.path().filename().string(), *number));
     }
   }
   if (files.empty()) {
     throw core::FileError({.path = folder}, "no robot graph (0.g2o, 1.g2o, ...) in this folder");
   }
-  std::sort(files.begin(), files.end());
-  std::vector<fs::path> paths;
-  for (auto& [n, path] : files) paths.push_back(std::move(path));
+  std::vector<std::string> paths;
+  for (const auto& [number, path] : files) {
+    if (number != paths.size()) {
+      throw core::FileError({.path = folder},
+                            fmt::format("{}.g2o is missing: robot graphs are numbered 0.g2o, "
+                                        "1.g2o, ... without a gap (the next is {})",
+                                        paths.size(), path.filename().string()));
+    }
+    paths.push_back(path.string());
+  }
   return paths;
 }
 
-/// Adds `part` to `merged`: new nodes, fixed nodes, factors; an inter-robot loop
+/// The file's vertices by the line that defines them.
+std::vector<std::pair<std::size_t, std::uint64_t>> verticesByLine(const io::G2oGraph& g2o) {
+  std::vector<std::pair<std::size_t, std::uint64_t>> vertices;
+  for (const auto& [id, line] : g2o.vertex_lines) vertices.emplace_back(line, id);
+  std::sort(vertices.begin(), vertices.end());
+  return vertices;
+}
+
+/// The vertices of a split graph's files, checked as each file is added: a
+/// file holds one robot's vertices and a robot's are in one file. A vertex
+/// defined twice, of another robot than the first of its file, or of a robot
+/// that another file holds, is an error naming the file and line.
+class SplitVertices {
+ public:
+  /// Adds the vertices of `file` (which must outlive this).
+  void add(const GraphFile& file) {
+    std::optional<std::pair<core::RobotId, std::size_t>> holds;  // the file's robot, first line
+    for (const auto& [line, id] : verticesByLine(file.g2o)) {
+      const VertexSource here{&file, line};
+      define(id, here);
+      const core::RobotId robot = keyOfVertex(id).robot;
+      if (!holds) holds = {claim(robot, here), line};
+      if (robot == holds->first) continue;
+      failAt(here,
+             fmt::format("vertex {} is robot {}'s, but this file holds robot {}'s (line {})",
+                         vertexName(id), core::robotName(robot), core::robotName(holds->first),
+                         holds->second),
+             "id");
+    }
+  }
+
+  [[nodiscard]] bool contains(std::uint64_t id) const { return vertices_.contains(id); }
+
+ private:
+  void define(std::uint64_t id, const VertexSource& here) {
+    const auto [defined, added] = vertices_.emplace(id, here);
+    if (added) return;
+    failAt(here,
+           fmt::format("vertex {} is defined in {} already", vertexName(id),
+                       describe(defined->second)),
+           "id");
+  }
+
+  /// `robot`, whose first vertex is `here`, for the file of `here`.
+  core::RobotId claim(core::RobotId robot, const VertexSource& here) {
+    const auto [holder, added] = robots_.emplace(robot, here);
+    if (added) return robot;
+    failAt(here,
+           fmt::format("robot {}'s vertices are in {} already (one file a robot)",
+                       core::robotName(robot), describe(holder->second)),
+           "id");
+  }
+
+  std::map<std::uint64_t, VertexSource> vertices_;
+  std::map<core::RobotId, VertexSource> robots_;  ///< each robot's first vertex
+};
+
+/// Throws naming the file, line and end of the first edge of `file` to a vertex
+/// that `defined` does not know; `who` completes "which ...".
+void requireEdgeEnds(const GraphFile& file, const std::function<bool(std::uint64_t)>& defined,
+                     std::string_view who) {
+  for (const io::G2oEdge& e : file.g2o.edges) {
+    for (const auto& [id, field] : {std::pair{e.from, "from"}, std::pair{e.to, "to"}}) {
+      if (defined(id)) continue;
+      throw core::FileError({.path = file.path, .line = e.line, .field = field},
+                            fmt::format("edge to vertex {}, which {}", vertexName(id), who));
+    }
+  }
+}
+
+/// Adds `part` to `merged`: nodes, fixed nodes, factors; an inter-robot loop
 /// whose keys `merged` holds already is left out.
 void merge(PoseGraph& merged, const PoseGraph& part, std::set<LoopId>& loops) {
-  for (const auto& [key, pose] : part.nodes()) {
-    if (!merged.hasNode(key)) merged.addNode(key, pose);
-  }
+  for (const auto& [key, pose] : part.nodes()) merged.addNode(key, pose);
   for (const core::PoseKey& key : part.fixedNodes()) merged.fix(key);
   for (const Factor& f : part.factors()) {
     if (f.from.robot != f.to.robot && !loops.insert(loopId(f)).second) continue;
     merged.addFactor(f);
   }
+}
+
+PoseGraph readGraphFolder(const std::string& folder, bool skip_unknown_lines) {
+  // Not chained: a robot file without vertex lines defines no vertex.
+  const io::G2oReadOptions options{.skip_unknown_tags = skip_unknown_lines,
+                                   .chain_missing_vertices = false};
+  std::vector<GraphFile> files;
+  for (const std::string& path : robotFiles(folder)) files.push_back(readGraphFile(path, options));
+  SplitVertices vertices;
+  for (const GraphFile& file : files) vertices.add(file);
+  const auto defined = [&](std::uint64_t id) { return vertices.contains(id); };
+  for (const GraphFile& file : files) {
+    requireEdgeEnds(file, defined, "no robot graph of the folder defines");
+  }
+  PoseGraph merged;
+  std::set<LoopId> loops;
+  for (const GraphFile& file : files) merge(merged, fromG2o(file.g2o), loops);
+  return merged;
 }
 
 /// Keyframes per robot of `graph` (largest keyframe + 1), by robot.
@@ -199,18 +352,11 @@ std::vector<ReferenceEdge> referenceEdges(const std::string& path, const PoseGra
 
 PoseGraph readMultiRobotGraph(const std::string& path, bool skip_unknown_lines) {
   if (!fs::exists(path)) throw core::FileError({.path = path}, "no such file or folder");
-  const auto read = [&](const std::string& file) {
-    const io::G2oGraph g2o = io::readG2o(file, {.skip_unknown_tags = skip_unknown_lines});
-    for (const std::size_t line : g2o.skipped_lines) {
-      spdlog::warn("{}:{}: skipped a line with an unknown tag", file, line);
-    }
-    return fromG2o(g2o);
-  };
-  if (!fs::is_directory(path)) return read(path);
-  PoseGraph merged;
-  std::set<LoopId> loops;
-  for (const fs::path& file : robotFiles(path)) merge(merged, read(file.string()), loops);
-  return merged;
+  if (fs::is_directory(path)) return readGraphFolder(path, skip_unknown_lines);
+  const GraphFile file = readGraphFile(path, {.skip_unknown_tags = skip_unknown_lines});
+  requireEdgeEnds(
+      file, [&](std::uint64_t id) { return file.g2o.hasVertex(id); }, "the file does not define");
+  return fromG2o(file.g2o);
 }
 
 std::set<LoopId> readReferenceLoops(const std::string& path, const PoseGraph& graph) {

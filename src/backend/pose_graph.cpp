@@ -12,12 +12,6 @@ std::string keyName(const core::PoseKey& key) {
   return core::robotName(key.robot) + std::to_string(key.keyframe.value());
 }
 
-/// g2o ids: a GTSAM symbol names its robot; a plain integer is robot 0's keyframe.
-core::PoseKey keyOfVertex(std::uint64_t id) {
-  if (core::PoseKey::isSymbol(id)) return core::PoseKey::unpack(id);
-  return {core::RobotId(0), core::KeyframeId(id)};
-}
-
 FactorKind kindOf(const core::PoseKey& from, const core::PoseKey& to) {
   if (from.robot != to.robot) return FactorKind::inter_loop;
   const auto a = from.keyframe.value();
@@ -103,6 +97,11 @@ core::Matrix6d informationFromCovariance(const core::Matrix6d& covariance, doubl
                                                             (covariance + covariance.transpose()));
   const core::Vector6d inverse = eigen.eigenvalues().cwiseMax(min_variance).cwiseInverse();
   return eigen.eigenvectors() * inverse.asDiagonal() * eigen.eigenvectors().transpose();
+}
+
+core::PoseKey keyOfVertex(std::uint64_t id) {
+  if (core::PoseKey::isSymbol(id)) return core::PoseKey::unpack(id);
+  return {core::RobotId(0), core::KeyframeId(id)};
 }
 
 PoseGraph fromG2o(const io::G2oGraph& g2o) {

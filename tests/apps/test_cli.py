@@ -827,6 +827,71 @@ def symbol_name(symbol):
     return chr(symbol >> 56) + str(symbol & ((1 << 56) - 1))
 
 
+IDENTITY_INFORMATION = " ".join("1" if r == c else "0" for r in range(6) for c in range(r, 6))
+
+
+def g2o_vertex(i):
+    return f"VERTEX_SE3:QUAT {i} {i} 0 0 0 0 0 1\n"
+
+
+def g2o_edge(a, b, information=IDENTITY_INFORMATION):
+    return f"EDGE_SE3:QUAT {a} {b} 1 0 0 0 0 0 1 {information}\n"
+
+
+# Graphs pgo and pcm refuse: {file: content}, and what the one error line names.
+CHAIN = g2o_vertex(0) + g2o_vertex(1) + g2o_edge(0, 1)
+A, B = ord("a") << 56, ord("b") << 56
+BAD_GRAPHS = (
+    ({"dangling.g2o": CHAIN + g2o_edge(1, 7)},
+     "dangling.g2o:4: field 'to': edge to vertex 7, which the file does not define"),
+    ({"zero.g2o": g2o_vertex(0) + g2o_vertex(1) + g2o_edge(0, 1, " ".join(["0"] * 21))},
+     "zero.g2o:3: field 'information': information matrix is zero"),
+    ({"negative.g2o": g2o_vertex(0) + g2o_vertex(1) + g2o_edge(0, 1, "-" + IDENTITY_INFORMATION)},
+     "negative.g2o:3: field 'information': information matrix is not positive semi-definite"),
+    ({"gap/0.g2o": g2o_vertex(A) + g2o_vertex(A + 1) + g2o_edge(A, A + 1),
+      "gap/2.g2o": g2o_vertex(B) + g2o_vertex(B + 1) + g2o_edge(B, B + 1)},
+     "gap: 1.g2o is missing"),
+    ({"twice/0.g2o": g2o_vertex(A) + g2o_vertex(A + 1) + g2o_edge(A, A + 1),
+      "twice/1.g2o": g2o_vertex(B) + g2o_vertex(A + 1) + g2o_edge(B, A + 1)},
+     "twice/1.g2o:2: field 'id': vertex a1 is defined in 0.g2o line 2 already"),
+    ({"loop_to_nowhere/0.g2o": g2o_vertex(A) + g2o_vertex(A + 1) + g2o_edge(A, A + 1)
+      + g2o_edge(A + 1, B + 5),
+      "loop_to_nowhere/1.g2o": g2o_vertex(B) + g2o_vertex(B + 1) + g2o_edge(B, B + 1)},
+     "loop_to_nowhere/0.g2o:4: field 'to': edge to vertex b5, which no robot graph of the "
+     "folder defines"),
+)
+
+
+def check_bad_graphs(test, *command):
+    """Each of BAD_GRAPHS makes `dcl-slam *command GRAPH` fail with one line naming it."""
+    for files, named in BAD_GRAPHS:
+        with tempfile.TemporaryDirectory() as tmp, test.subTest(graph=named):
+            for name, content in files.items():
+                os.makedirs(os.path.dirname(os.path.join(tmp, name)), exist_ok=True)
+                with open(os.path.join(tmp, name), "w") as f:
+                    f.write(content)
+            graph = os.path.join(tmp, next(iter(files)).split("/")[0])
+            code, out, err = run(*command, graph, check=False)
+            test.assertEqual(code, 1, out)
+            test.assertEqual(len(err.strip().splitlines()), 1, err)
+            test.assertTrue(err.startswith("dcl-slam: error: "), err)
+            test.assertIn(os.path.join(tmp, named), err)
+
+
+def check_unknown_lines_skipped(test, *command):
+    """A damaged line of a single file fails the command, and --skip-unknown-lines skips it."""
+    with tempfile.TemporaryDirectory() as tmp:
+        graph = os.path.join(tmp, "damaged.g2o")
+        with open(graph, "w") as f:
+            f.write(g2o_vertex(0) + "0410268 0.7588833\n" + g2o_vertex(1) + g2o_edge(0, 1))
+        code, _, err = run(*command, graph, check=False)
+        test.assertEqual(code, 1)
+        test.assertIn(f"{graph}:2: field 'tag'", err)
+        code, out, err = run(*command, graph, "--skip-unknown-lines", "--json")
+        test.assertEqual(json.loads(out)["graph"], graph)
+        test.assertIn(f"{graph}:2: skipped a line with an unknown tag", err)
+
+
 class Pcm(unittest.TestCase):
     """dcl-slam pcm: outlier rejection on the benchmark graphs with outlier loops."""
 
@@ -910,6 +975,12 @@ class Pcm(unittest.TestCase):
         _, out, err = run("pcm", "--graph", graph, "--skip-unknown-lines", "--json")
         self.assertEqual(json.loads(out)["loops"], 20)
         self.assertIn("1.g2o:16", err)
+
+    def test_bad_graphs_are_named_by_file_and_line(self):
+        check_bad_graphs(self, "pcm", "--graph")
+
+    def test_unknown_lines_of_a_single_file_can_be_skipped(self):
+        check_unknown_lines_skipped(self, "pcm", "--graph")
 
     def test_reference_of_another_graph_is_refused(self):
         code, _, err = run(

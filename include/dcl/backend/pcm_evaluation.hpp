@@ -23,12 +23,15 @@
 namespace dcl::backend {
 
 /// Reads a multi-robot pose graph: one g2o file, or a folder whose files named
-/// `<number>.g2o` are the robots' graphs (other files are ignored), merged: a
-/// vertex in several files keeps its first estimate, an inter-robot loop in
-/// several files counts once (the first, files in numeric order). Throws
-/// core::FileError naming the file or the folder. With `skip_unknown_lines`,
-/// lines with an unknown tag (a damaged line) are skipped with a warning
-/// naming them instead.
+/// `<number>.g2o` are the robots' graphs (other files are ignored), merged: an
+/// inter-robot loop in several files counts once (the first, files in numeric
+/// order). Every edge must join vertices the file (a folder: one of its robot
+/// graphs) defines. In a folder the robot graphs are regular files numbered
+/// from 0 without a gap, each holds the vertices of one robot, and no vertex
+/// or robot is in two of them. Throws core::FileError naming the file and line
+/// (the folder, for its numbering) otherwise, or for anything io::readG2o
+/// refuses. With `skip_unknown_lines`, lines with an unknown tag (a damaged
+/// line) are skipped with a warning naming them instead.
 PoseGraph readMultiRobotGraph(const std::string& path, bool skip_unknown_lines = false);
 
 /// The inter-robot loops of the outlier-free reference at `path` (a file or a

@@ -126,6 +126,10 @@ enum class VertexIds {
   symbols,    ///< to g2o: GTSAM symbols (core::PoseKey::pack)
 };
 
+/// The key of a g2o vertex id: a GTSAM symbol names its robot and keyframe, a
+/// plain integer is robot 0's keyframe.
+core::PoseKey keyOfVertex(std::uint64_t id);
+
 /// A pose graph from a g2o / TORO graph read by io::readG2o. Vertex ids that
 /// are GTSAM symbols become their robot and keyframe, plain ids robot 0 and
 /// keyframe id. Factor kinds: ends of different robots give inter_loop,
