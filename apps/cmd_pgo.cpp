@@ -3,7 +3,6 @@
 // distributed result reported beside the centralized optimum of the same graph.
 #include <algorithm>
 #include <chrono>
-#include <filesystem>
 #include <map>
 #include <memory>
 #include <optional>
@@ -210,9 +209,7 @@ std::size_t robotCount(const backend::PoseGraph& graph) {
 }
 
 backend::PoseGraph readGraph(const PgoOptions& o) {
-  backend::PoseGraph graph = std::filesystem::is_directory(o.g2o)
-                                 ? backend::readMultiRobotGraph(o.g2o, o.skip_unknown_lines)
-                                 : backend::fromG2o(io::readG2o(o.g2o));
+  backend::PoseGraph graph = backend::readMultiRobotGraph(o.g2o, o.skip_unknown_lines);
   if (o.robots < 1) throw core::Error("--robots must be at least 1");
   if (o.robots > 1) {
     if (robotCount(graph) != 1)

@@ -1143,6 +1143,22 @@ class Pgo(unittest.TestCase):
         self.assertEqual(code, 1)
         self.assertIn("4 robots already", err)
 
+    def test_bad_graphs_are_named_by_file_and_line_and_nothing_is_written(self):
+        out = os.path.join(tempfile.mkdtemp(), "result.g2o")
+        check_bad_graphs(self, "pgo", "--method", "centralized", "--out", out, "--g2o")
+        self.assertFalse(os.path.exists(out))
+
+    def test_unknown_lines_of_a_file_or_a_folder_can_be_skipped(self):
+        check_unknown_lines_skipped(self, "pgo", "--method", "centralized", "--g2o")
+        folder = os.path.join(OUTLIERS, "robust_distributed_mapper",
+                              "pairwise_consistency_maximization", "spoiled", "simulation",
+                              "example_2robots")
+        code, _, err = run("pgo", "--g2o", folder, check=False)
+        self.assertEqual(code, 1)
+        self.assertIn("1.g2o:16", err)
+        m = self.pgo("--g2o", folder, "--method", "centralized", "--skip-unknown-lines")
+        self.assertEqual(m["robots"], 2)
+
 
 if __name__ == "__main__":
     unittest.main()
