@@ -109,19 +109,6 @@ std::vector<Eigen::Isometry3d> readKittiMatrices(const std::string& path) {
   return poses;
 }
 
-std::vector<double> readStamps(const std::string& path) {
-  LineReader in(path);
-  std::vector<double> stamps;
-  while (in.next()) {
-    const Tokens tokens = splitWhitespace(in.line());
-    if (tokens.empty()) continue;
-    requireCount(in, tokens.size(), 1, "one time stamp a line");
-    stamps.push_back(finiteNumber(in, tokens.front(), "t"));
-  }
-  if (stamps.empty()) failEmpty(in, "time stamps");
-  return stamps;
-}
-
 std::vector<double> indexStamps(std::size_t n) {
   std::vector<double> stamps(n);
   for (std::size_t i = 0; i < n; ++i) stamps[i] = static_cast<double>(i);
@@ -213,11 +200,33 @@ std::string_view toString(PoseFormat format) {
   return format == PoseFormat::kitti ? "kitti" : "tum";
 }
 
+std::vector<double> readKittiTimes(const std::string& path) {
+  LineReader in(path);
+  std::vector<double> stamps;
+  std::size_t previous_line = 0;
+  while (in.next()) {
+    const Tokens tokens = splitWhitespace(in.line());
+    if (tokens.empty()) continue;
+    requireCount(in, tokens.size(), 1, "one time stamp a line");
+    const double t = finiteNumber(in, tokens.front(), "t");
+    if (!stamps.empty() && !(t > stamps.back())) {
+      in.fail(std::string(t == stamps.back() ? "repeats" : "goes back before") + " the stamp " +
+                  formatNumber(stamps.back()) + " of line " + std::to_string(previous_line) +
+                  " (stamps must increase)",
+              "t");
+    }
+    stamps.push_back(t);
+    previous_line = in.lineNumber();
+  }
+  if (stamps.empty()) failEmpty(in, "time stamps");
+  return stamps;
+}
+
 core::Trajectory readKittiPoses(const std::string& path,
                                 const std::optional<std::string>& times_path) {
   std::vector<Eigen::Isometry3d> poses = readKittiMatrices(path);
   if (!times_path) return {indexStamps(poses.size()), std::move(poses)};
-  std::vector<double> stamps = readStamps(*times_path);
+  std::vector<double> stamps = readKittiTimes(*times_path);
   if (stamps.size() != poses.size()) {
     throw FileError({*times_path}, "has " + std::to_string(stamps.size()) +
                                        " time stamps but the pose file " + path + " has " +

@@ -3,8 +3,8 @@
 #include <fmt/format.h>
 
 #include <dcl/core/error.hpp>
-#include <dcl/io/file.hpp>
 #include <dcl/io/kitti_scan.hpp>
+#include <dcl/io/pose_file.hpp>
 #include <dcl/io/rosbag.hpp>
 #include <dcl/io/scan_source.hpp>
 
@@ -18,30 +18,12 @@ void requireIndex(std::size_t i, std::size_t size, const std::string& what) {
   if (i >= size) throw core::Error(fmt::format("{}: no scan {} (it has {})", what, i, size));
 }
 
-std::vector<double> readTimes(const std::string& path) {
-  std::vector<double> stamps;
-  LineReader reader(path);
-  while (reader.next()) {
-    const auto tokens = splitWhitespace(reader.line());
-    if (tokens.empty()) continue;
-    if (tokens.size() != 1) reader.fail("expected one stamp a line", "stamp");
-    const auto value = parseNumber<double>(tokens[0]);
-    if (!value) reader.fail(fmt::format("'{}' is not a number", tokens[0]), "stamp");
-    stamps.push_back(*value);
-    if (stamps.size() > 1 && stamps.back() < stamps[stamps.size() - 2]) {
-      reader.fail("stamps decrease", "stamp");
-    }
-  }
-  if (stamps.empty()) throw core::FileError({path}, "no stamps");
-  return stamps;
-}
-
 }  // namespace
 
 // ---- KITTI folder ----
 
 KittiScanSource::KittiScanSource(std::string folder, const std::string& times_path)
-    : folder_(std::move(folder)), stamps_(readTimes(times_path)) {
+    : folder_(std::move(folder)), stamps_(readKittiTimes(times_path)) {
   for (std::size_t i = 0; i < stamps_.size(); ++i) {
     if (!fs::is_regular_file(scanPath(i))) {
       throw core::FileError({times_path}, fmt::format("{} stamps, but scan {} is missing",

@@ -526,6 +526,28 @@ class Odometry(DemoDataset):
         for name in ("trajectory.tum", "odometry.tum", "keyframes/poses.tum"):
             self.assertTrue(os.path.exists(os.path.join(out, name)), name)
 
+    def test_kitti_times_that_do_not_increase_are_refused_before_anything_is_written(self):
+        folder = os.path.join(self.tmp.name, "kitti")
+        os.makedirs(folder, exist_ok=True)
+        with open(os.path.join(folder, "dataset.yaml"), "w") as f:
+            f.write("format_version: 1\nname: kitti00\nsensor:\n  model: hdl64\n"
+                    "  mount_height: 1.73\nrobots:\n  - name: a\n    scans:\n      type: kitti\n"
+                    f"      folder: {os.path.join(DATA, 'lidar_scans', 'kitti_00', 'velodyne')}\n"
+                    "      times: times.txt\n")
+        times = os.path.join(folder, "times.txt")
+        out = os.path.join(self.tmp.name, "kitti_out")
+        for stamps, named in (("0\n0.1\n0.1\n", ":3: field 't': repeats the stamp 0.1 of line 2"),
+                              ("0\n0.2\n0.1\n", ":3: field 't': goes back before the stamp 0.2"),
+                              ("0\nnan\n", ":2: field 't': 'nan' is not finite")):
+            with self.subTest(stamps=stamps):
+                with open(times, "w") as f:
+                    f.write(stamps)
+                code, _, err = run("odometry", "--dataset", folder, "--out", out,
+                                   "--allow-outside-paths", check=False)
+                self.assertEqual(code, 1)
+                self.assertIn(times + named, err)
+                self.assertFalse(os.path.exists(out))
+
     def test_unknown_robot_is_named(self):
         code, _, err = run("odometry", "--dataset", self.dataset, "--robot", "zz", "--out",
                            os.path.join(self.tmp.name, "x"), check=False)

@@ -224,6 +224,11 @@ TEST(KittiPoses, CorruptTimesFile) {
       {"word", "0\nabc\n", {":2:", "field 't'", "'abc'"}},
       {"two_numbers", "0\n1 2\n", {":2:", "found 2"}},
       {"nan", "nan\n1\n", {":1:", "not finite"}},
+      {"nan_later", "0\nnan\n", {":2:", "field 't'", "'nan' is not finite"}},
+      {"repeated", "0\n\n0\n", {":3:", "field 't'", "repeats the stamp 0 of line 1"}},
+      {"decreasing",
+       "0\n0.2\n0.1\n",
+       {":3:", "field 't'", "goes back before the stamp 0.2 of line 2"}},
   };
   for (const auto& c : cases) {
     const std::string times = dir.write(c.name + ".txt", c.content);

@@ -88,6 +88,13 @@ TEST(KittiScanSource, RejectsMissingScansAndBadTimes) {
                        "000006.bin is missing"));
   const std::string decreasing = dir.write("dec.txt", "0.0\n0.2\n0.1\n");
   EXPECT_TRUE(contains(fileError([&] { KittiScanSource(kVelodyne, decreasing); }), ":3:"));
+  // Repeated and NaN stamps went into the outputs' trajectories as they were.
+  const std::string repeated = dir.write("rep.txt", "0.0\n0.1\n0.1\n");
+  EXPECT_TRUE(contains(fileError([&] { KittiScanSource(kVelodyne, repeated); }),
+                       "rep.txt:3: field 't': repeats the stamp 0.1 of line 2"));
+  const std::string nan = dir.write("nan.txt", "0.0\nnan\n");
+  EXPECT_TRUE(contains(fileError([&] { KittiScanSource(kVelodyne, nan); }),
+                       "nan.txt:2: field 't': 'nan' is not finite"));
   const std::string bad = dir.write("bad.txt", "0.0\nzero\n");
   EXPECT_TRUE(contains(fileError([&] { KittiScanSource(kVelodyne, bad); }), "'zero'"));
 }

@@ -18,6 +18,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <vector>
 
 #include <dcl/core/trajectory.hpp>
 
@@ -35,8 +36,14 @@ PoseFormat parsePoseFormat(std::string_view name);
 /// "kitti" or "tum".
 std::string_view toString(PoseFormat format);
 
-/// Reads a KITTI pose file. With `times_path`, stamps come from that file (one
-/// number a line; its count must match the poses, else core::FileError naming
+/// Reads a KITTI times file: one stamp a line (s), blank lines skipped. Throws
+/// core::FileError naming the file, the line and what is wrong: not one finite
+/// number, a stamp not after the one before it (stamps strictly increase), or
+/// no stamp at all.
+std::vector<double> readKittiTimes(const std::string& path);
+
+/// Reads a KITTI pose file. With `times_path`, stamps come from that file
+/// (readKittiTimes; its count must match the poses, else core::FileError naming
 /// both files); without it, the stamp of pose i is its index i (0, 1, 2, ...).
 /// Blank lines are skipped; an empty file is an error.
 core::Trajectory readKittiPoses(const std::string& path,

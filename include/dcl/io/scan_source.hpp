@@ -37,8 +37,9 @@ class ScanSource {
 /// stamp a line, s since the start). `scan` is safe to call from several threads.
 class KittiScanSource final : public ScanSource {
  public:
-  /// Reads the times file; throws core::FileError when it cannot be read, its
-  /// stamps decrease, or a scan file for one of its lines is missing.
+  /// Reads the times file (io::readKittiTimes: finite stamps that increase);
+  /// throws core::FileError when it cannot be read or is not one, or a scan file
+  /// for one of its lines is missing.
   KittiScanSource(std::string folder, const std::string& times_path);
 
   /// Number of lines of the times file.
