@@ -6,6 +6,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -75,15 +76,31 @@ RobotData openRobot(const std::string& dataset, const std::string& robot) {
   return data;
 }
 
-std::unique_ptr<odometry::Odometry> makeOdometry(const OdometryOptions& o,
-                                                 const AppConfig& config) {
+/// The first and last stamp of the first `frames` scans.
+std::pair<double, double> frameTimes(const io::ScanSource& scans, std::size_t frames) {
+  double first = scans.stamp(0), last = first;
+  for (std::size_t i = 1; i < frames; ++i) {
+    first = std::min(first, scans.stamp(i));
+    last = std::max(last, scans.stamp(i));
+  }
+  return {first, last};
+}
+
+/// The odometry of the run; an external one must cover some of the frames' times.
+std::unique_ptr<odometry::Odometry> makeOdometry(const OdometryOptions& o, const AppConfig& config,
+                                                 const io::ScanSource& scans, std::size_t frames) {
   if (o.external.empty()) return std::make_unique<odometry::LidarOdometry>(config.odometry);
   odometry::ExternalOdometryConfig external = config.external;
   external.file = o.external;
   external.format = o.external_format;
   external.topic = o.external_topic;
   external.times = o.external_times;
-  return std::make_unique<odometry::ExternalOdometry>(external);
+  auto odometry = std::make_unique<odometry::ExternalOdometry>(external);
+  if (frames > 0) {
+    const auto [first, last] = frameTimes(scans, frames);
+    odometry->requireOverlap(first, last);
+  }
+  return odometry;
 }
 
 /// What happened to every frame.
@@ -274,12 +291,12 @@ void runOdometry(const OdometryOptions& o, const AppConfig& config) {
   const RobotData data = openRobot(o.dataset, o.robot);
   const std::size_t threads = o.threads > 0 ? o.threads : tbb::info::default_concurrency();
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
-  auto odometry = makeOdometry(o, config);
+  const std::size_t frames =
+      o.max_frames > 0 ? std::min(o.max_frames, data.scans->size()) : data.scans->size();
+  auto odometry = makeOdometry(o, config, *data.scans, frames);
   odometry::LocalMapperConfig mapper_config = config.mapper;
   mapper_config.loop_closure = mapper_config.loop_closure && !o.no_loops;
   odometry::LocalMapper mapper(core::RobotId(static_cast<std::uint8_t>(data.index)), mapper_config);
-  const std::size_t frames =
-      o.max_frames > 0 ? std::min(o.max_frames, data.scans->size()) : data.scans->size();
   fmt::print("robot {} of '{}': {} frames, {} odometry, {} threads\n",
              data.spec.robots[data.index].name, data.spec.name, frames, odometry->name(), threads);
   const FrameLog log = runFrames(data, *odometry, mapper, frames);

@@ -2,6 +2,8 @@
 #include <cmath>
 #include <utility>
 
+#include <fmt/format.h>
+
 #include <dcl/core/error.hpp>
 #include <dcl/io/pose_file.hpp>
 #include <dcl/io/rosbag.hpp>
@@ -67,6 +69,14 @@ ExternalOdometry::ExternalOdometry(core::Trajectory T_world_body,
 
 ExternalOdometry::ExternalOdometry(const ExternalOdometryConfig& config)
     : ExternalOdometry(loadExternalTrajectory(config), config) {}
+
+void ExternalOdometry::requireOverlap(double first_stamp, double last_stamp) const {
+  if (first_stamp <= lastStamp() && last_stamp >= firstStamp()) return;
+  throw core::Error(fmt::format(
+      "external odometry: its poses span {:.6f} .. {:.6f} s, the scans {:.6f} .. {:.6f} s: no "
+      "scan falls in the poses' time range (are they on the same clock?)",
+      firstStamp(), lastStamp(), first_stamp, last_stamp));
+}
 
 OdometryResult ExternalOdometry::process(double stamp, const core::PointCloud& /*scan*/) {
   if (!std::isfinite(stamp)) return held(stamp, "stamp is not finite");

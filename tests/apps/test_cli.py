@@ -526,6 +526,23 @@ class Odometry(DemoDataset):
         for name in ("trajectory.tum", "odometry.tum", "keyframes/poses.tum"):
             self.assertTrue(os.path.exists(os.path.join(out, name)), name)
 
+    def test_external_poses_on_another_clock_are_refused_before_anything_is_written(self):
+        # The ground truth in Unix time against scans stamped from the robot's start.
+        external = os.path.join(self.tmp.name, "unix_time.tum")
+        with open(os.path.join(self.dataset, "ground_truth", "b.tum")) as f, \
+                open(external, "w") as out:
+            for line in f:
+                t, rest = line.split(" ", 1)
+                out.write(f"{float(t) + 1.7e9!r} {rest}")
+        out = os.path.join(self.tmp.name, "unix_time")
+        code, _, err = run("odometry", "--dataset", self.dataset, "--robot", "b", "--out", out,
+                           "--max-frames", "20", "--external", external, check=False)
+        self.assertEqual(code, 1)
+        self.assertEqual(len(err.strip().splitlines()), 1, err)
+        self.assertRegex(err, r"external odometry: its poses span 17\d{8}\.\d+ \.\. 17\d{8}\.\d+ s, "
+                              r"the scans 0\.\d+ \.\. 1\.\d+ s")
+        self.assertFalse(os.path.exists(out))
+
     def test_kitti_times_that_do_not_increase_are_refused_before_anything_is_written(self):
         folder = os.path.join(self.tmp.name, "kitti")
         os.makedirs(folder, exist_ok=True)

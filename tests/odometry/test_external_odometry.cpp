@@ -99,6 +99,29 @@ TEST(ExternalOdometry, BadStampsAreReportedAndThePoseHeld) {
   EXPECT_TRUE(odometry.pose().isApprox(later.T_odom_sensor));
 }
 
+TEST(ExternalOdometry, ScansThatNeverMeetThePosesInTimeAreRefused) {
+  const core::Trajectory tum =
+      io::readTumPoses(data("trajectories/evo/freiburg1_xyz-groundtruth.txt"));
+  const ExternalOdometry odometry(tum);
+  // Partly inside, or the whole trajectory inside the scans' span: frames get poses.
+  odometry.requireOverlap(tum.stamp(0) - 5.0, tum.stamp(0));
+  odometry.requireOverlap(odometry.lastStamp() - 1.0, odometry.lastStamp() + 1.0);
+  odometry.requireOverlap(0.0, 2e9);
+  // Seconds since the start against the file's Unix times: every frame would be held.
+  try {
+    odometry.requireOverlap(0.0, 12.5);
+    FAIL() << "scans outside the poses' time range were accepted";
+  } catch (const core::Error& e) {
+    const std::string message = e.what();
+    EXPECT_NE(message.find("poses span 1305031098.665900 .. 1305031128.755500 s"),
+              std::string::npos)
+        << message;
+    EXPECT_NE(message.find("the scans 0.000000 .. 12.500000 s"), std::string::npos) << message;
+  }
+  EXPECT_THROW(odometry.requireOverlap(odometry.lastStamp() + 1.0, odometry.lastStamp() + 9.0),
+               core::Error);
+}
+
 TEST(ExternalOdometry, ReadsPoseStampedFromARealBag) {
   ExternalOdometryConfig config;
   config.file = data("rosbags/evo_ROS_example.bag");  // format "auto": by the .bag extension

@@ -82,6 +82,12 @@ class ExternalOdometry final : public Odometry {
   /// "external".
   [[nodiscard]] std::string name() const override { return "external"; }
 
+  /// Throws core::Error naming both time ranges when the scans' stamps, from
+  /// `first_stamp` to `last_stamp`, never meet the trajectory's: no frame would
+  /// get a pose (a file on another clock than the scans, say Unix time against
+  /// seconds since the start).
+  void requireOverlap(double first_stamp, double last_stamp) const;
+
   /// The first and last stamp of the replayed trajectory.
   [[nodiscard]] double firstStamp() const { return T_world_body_.stamps().front(); }
   [[nodiscard]] double lastStamp() const {
