@@ -12,6 +12,7 @@
 #include <dcl/io/pose_file.hpp>
 
 #include "commands.hpp"
+#include "option_checks.hpp"
 
 namespace dcl::apps {
 
@@ -41,8 +42,11 @@ void addInputOptions(CLI::App& cmd, EvalInputs& in) {
   cmd.add_option("--align", in.alignment, "alignment of the estimate: none, se3 or sim3")
       ->capture_default_str();
   cmd.add_option("--max-diff", in.max_diff, "s, largest stamp difference to associate")
+      ->check(kNonNegative)
       ->capture_default_str();
-  cmd.add_option("--offset", in.offset, "s, added to the estimate's stamps")->capture_default_str();
+  cmd.add_option("--offset", in.offset, "s, added to the estimate's stamps")
+      ->check(kFinite)
+      ->capture_default_str();
   cmd.add_flag("--json", in.json, "print the result as JSON");
 }
 
@@ -214,6 +218,7 @@ void addEvalCommand(CLI::App& app, const AppConfig& config) {
   addInputOptions(*ate, *inputs);
   ate->add_option("--reference-robot", inputs->reference_robot,
                   "several robots: the one whose trajectory fixes the common alignment")
+      ->check(kNonNegative)
       ->capture_default_str();
   ate->callback([inputs] { runAte(*inputs); });
 

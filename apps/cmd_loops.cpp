@@ -35,6 +35,7 @@
 #include <dcl/sim/sim_source.hpp>
 
 #include "commands.hpp"
+#include "option_checks.hpp"
 #include "output_folder.hpp"
 
 namespace dcl::apps {
@@ -439,11 +440,14 @@ void addBenchLoopsCommand(CLI::App& bench, const AppConfig& config) {
   cmd->add_option("--out", o->out, "output folder (metrics.json, loops.csv)")
       ->capture_default_str();
   cmd->add_option("--max-frames", o->max_frames, "frames per robot (0: all)")
+      ->check(kNonNegative)
       ->capture_default_str();
   cmd->add_option("--max-error-m", o->max_error_m, "m, a correct loop's largest translation error")
+      ->check(kNonNegative)
       ->capture_default_str();
   cmd->add_option("--max-error-deg", o->max_error_deg,
                   "deg, a correct loop's largest rotation error")
+      ->check(kNonNegative)
       ->capture_default_str();
   cmd->add_flag("--json", o->json, "print metrics.json");
   addForceFlag(*cmd, o->force);

@@ -30,6 +30,7 @@
 #include <dcl/sim/sim_source.hpp>
 
 #include "commands.hpp"
+#include "option_checks.hpp"
 #include "output_folder.hpp"
 
 namespace dcl::apps {
@@ -366,6 +367,7 @@ void addRobotOptions(CLI::App& cmd, OdometryOptions& o) {
   cmd.add_option("--dataset", o.dataset, "dataset folder (dataset.yaml)")->required();
   cmd.add_option("--robot", o.robot, "robot name (default: the first)");
   cmd.add_option("--max-frames", o.max_frames, "stop after N frames (0: all)")
+      ->check(kNonNegative)
       ->capture_default_str();
   cmd.add_option("--threads", o.threads, "threads for the odometry (0: all cores)")
       ->capture_default_str();

@@ -35,6 +35,7 @@
 #include <dcl/sim/sim_source.hpp>
 
 #include "commands.hpp"
+#include "option_checks.hpp"
 #include "output_folder.hpp"
 #include "process.hpp"
 #include "robot_outputs.hpp"
@@ -387,6 +388,7 @@ void addRobotCommand(CLI::App& app, const AppConfig& config) {
                   "peers go on (their last loops and unconverged rounds)")
       ->capture_default_str();
   cmd->add_option("--max-frames", o->max_frames, "scans to play at most (0: all)")
+      ->check(kNonNegative)
       ->capture_default_str();
   cmd->add_option("--swarm", o->dds.swarm, "swarm name, the DDS partition (default: dds.swarm)")
       ->capture_default_str();

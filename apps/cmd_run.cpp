@@ -32,6 +32,7 @@
 #include <dcl/swarm/swarm_run.hpp>
 
 #include "commands.hpp"
+#include "option_checks.hpp"
 #include "output_folder.hpp"
 #include "robot_outputs.hpp"
 #include "run_swarm.hpp"
@@ -373,6 +374,7 @@ void addRunCommand(CLI::App& app, const AppConfig& config) {
   cmd->add_option("--dataset", o->dataset, "dataset folder (dataset.yaml)")->required();
   cmd->add_option("--out", o->out, "output folder")->capture_default_str();
   cmd->add_option("--max-frames", o->max_frames, "scans per robot at most (0: all)")
+      ->check(kNonNegative)
       ->capture_default_str();
   cmd->add_option("--threads", o->threads, "robots processed at once (0: every core)")
       ->capture_default_str();

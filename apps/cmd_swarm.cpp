@@ -37,6 +37,7 @@
 #include <dcl/robot/frames.hpp>
 
 #include "commands.hpp"
+#include "option_checks.hpp"
 #include "output_folder.hpp"
 #include "process.hpp"
 #include "robot_outputs.hpp"
@@ -538,6 +539,7 @@ void addSwarmCommand(CLI::App& app, const AppConfig& config) {
                   "s of swarm time each robot keeps running after its last scan")
       ->capture_default_str();
   cmd->add_option("--max-frames", o->max_frames, "scans per robot at most (0: all)")
+      ->check(kNonNegative)
       ->capture_default_str();
   cmd->add_option("--robots", o->robots, "the robots to start, e.g. a,c (default: all)")
       ->delimiter(',');

@@ -38,6 +38,7 @@
 
 #include "bound.hpp"
 #include "commands.hpp"
+#include "option_checks.hpp"
 #include "run_swarm.hpp"
 
 namespace dcl::apps {
@@ -400,6 +401,7 @@ void addBenchSystemCommand(CLI::App& bench, const AppConfig& config) {
   cmd->add_option("--data", o->data, "the shared data folder (KITTI ground truth)")
       ->capture_default_str();
   cmd->add_option("--max-frames", o->max_frames, "scans per robot at most (0: all)")
+      ->check(kNonNegative)
       ->capture_default_str();
   cmd->add_option("--threads", o->threads, "robots processed at once (0: every core)")
       ->capture_default_str();

@@ -614,6 +614,37 @@ class Errors(unittest.TestCase):
         self.assertNotEqual(code, 0)
         self.assertIn("affine", err)
 
+    def test_bad_numbers_are_refused_when_the_options_are_read(self):
+        gt = os.path.join(EVO, "KITTI_00_gt.txt")
+        ate = ["eval", "ate", "--gt", gt, "--est", gt, "--format", "kitti"]
+        rpe = ["eval", "rpe", "--gt", gt, "--est", gt, "--format", "kitti"]
+        cases = [
+            (ate + ["--reference-robot", "-1"], "--reference-robot: '-1' is negative"),
+            (ate + ["--reference-robot", "nan"], "--reference-robot: 'nan' is not a finite number"),
+            (ate + ["--max-diff", "nan"], "--max-diff: 'nan' is not a finite number"),
+            (ate + ["--max-diff", "-0.01"], "--max-diff: '-0.01' is negative"),
+            (rpe + ["--max-diff", "inf"], "--max-diff: 'inf' is not a finite number"),
+            (ate + ["--offset", "nan"], "--offset: 'nan' is not a finite number"),
+            (rpe + ["--offset", "-inf"], "--offset: '-inf' is not a finite number"),
+            (["bench", "loops", "--max-error-m", "nan"], "--max-error-m: 'nan' is not a finite"),
+            (["bench", "loops", "--max-error-m", "-1"], "--max-error-m: '-1' is negative"),
+            (["bench", "loops", "--max-error-deg", "nan"], "--max-error-deg: 'nan' is not a"),
+        ]
+        for command in (["odometry"], ["bench", "odometry"], ["bench", "loops"], ["run"],
+                        ["robot"], ["swarm"], ["bench", "system"]):
+            cases += [(command + ["--max-frames", "-1"], "--max-frames: '-1' is negative"),
+                      (command + ["--max-frames", "nan"], "--max-frames: 'nan' is not a finite")]
+        for args, named in cases:
+            with self.subTest(args=args):
+                code, _, err = run(*args, check=False)
+                self.assertNotEqual(code, 0)
+                self.assertTrue(err.startswith("dcl-slam: error: "), err)
+                self.assertEqual(len(err.strip().splitlines()), 1, err)
+                self.assertIn(named, err)
+        # A negative offset is a clock difference: allowed.
+        code, _, _ = run(*ate, "--offset", "-0.5", "--max-diff", "0")
+        self.assertEqual(code, 0)
+
     def test_unknown_scan_extension(self):
         scan = os.path.join(DATA, "lidar_scans", "kitti_00", "velodyne", "000000.bin")
         code, _, err = run("convert", scan, "/tmp/x.xyz", check=False)
