@@ -1,16 +1,23 @@
 // Writes the fuzzers' seed corpora: every message kind with realistic values,
-// and a real KITTI descriptor and verification cloud, so that fuzzing starts
-// from inputs that reach deep into each decoder.
-// Usage: fuzz_seeds DIR   (writes DIR/message, DIR/descriptor, DIR/cloud, DIR/bag)
+// a real KITTI descriptor and verification cloud, and small pieces of real
+// files (bags, pose-graph benchmarks, KITTI and TUM trajectories, KITTI scans,
+// PCD and PLY clouds through our writers), so that fuzzing starts from inputs
+// that reach deep into each decoder and reader.
+// Usage: fuzz_seeds DIR   (writes DIR/<target> for every target)
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <sstream>
 #include <string>
 #include <vector>
 
 #include <dcl/comm/messages.hpp>
 #include <dcl/io/bag_writer.hpp>
 #include <dcl/io/kitti_scan.hpp>
+#include <dcl/io/pcd.hpp>
+#include <dcl/io/ply.hpp>
 #include <dcl/place/descriptor_codec.hpp>
 #include <dcl/place/lidar_iris.hpp>
 #include <dcl/registration/cloud_codec.hpp>
@@ -27,6 +34,128 @@ void write(const std::filesystem::path& dir, const std::string& name,
   std::ofstream(dir / name, std::ios::binary)
       .write(reinterpret_cast<const char*>(bytes.data()),
              static_cast<std::streamsize>(bytes.size()));
+}
+
+void write(const std::filesystem::path& dir, const std::string& name, const std::string& bytes) {
+  write(dir, name, std::vector<std::uint8_t>(bytes.begin(), bytes.end()));
+}
+
+std::string dataPath(const std::string& relative) {
+  return std::string(DCL_DATA_DIR) + "/" + relative;
+}
+
+std::string readText(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+/// The first `head` and the last `tail` lines of a text file: small seeds that
+/// still hold what files keep for their end (TORO's EQUIV lines).
+std::string headAndTail(const std::string& path, std::size_t head, std::size_t tail = 0) {
+  std::vector<std::string> lines;
+  std::istringstream in(readText(path));
+  for (std::string line; std::getline(in, line);) lines.push_back(line + "\n");
+  std::string out;
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    if (i < head || i + tail >= lines.size()) out += lines[i];
+  }
+  return out;
+}
+
+/// Pieces of the pose-graph benchmarks, one per tag family and id scheme.
+void writeGraphSeeds(const std::filesystem::path& dir) {
+  const std::vector<std::string> graphs = {
+      "3d/tinyGrid3D.g2o",                    // VERTEX_SE3:QUAT, EDGE_SE3:QUAT
+      "3d/gtsam_pose3example.g2o",            //
+      "3d/sphere_smallnoise.graph",           // VERTEX3, EDGE3 without information
+      "3d/sphere2500_groundtruth.graph",      // EDGE3 with information, no vertices
+      "2d/intel.g2o",                         // VERTEX_SE2, EDGE_SE2
+      "2d/kitti_00.g2o",                      // EDGE_SE2 only: chained
+      "2d/w100.graph",                        // VERTEX2, EDGE2, EQUIV
+      "2d/gtsam_noisyToyGraph.g2o",           //
+      "multi_robot/kimera_rpgo/ordered.g2o",  // plain ids and 'u' symbols
+      "multi_robot/distributed_mapper/example_2robots/0.g2o",  // a robot's file
+      "multi_robot_outliers/robust_distributed_mapper/pairwise_consistency_maximization/"
+      "spoiled/simulation/example_2robots/1.g2o",  // a damaged line 16
+  };
+  for (const std::string& graph : graphs) {
+    std::string name = graph;
+    std::replace(name.begin(), name.end(), '/', '_');
+    write(dir, name, headAndTail(dataPath("pose_graphs/" + graph), 30, 5));
+  }
+}
+
+void writePoseSeeds(const std::filesystem::path& dir) {
+  write(dir, "kitti_00_gt", headAndTail(dataPath("trajectories/evo/KITTI_00_gt.txt"), 20));
+  write(dir, "kitti_00_times", headAndTail(dataPath("trajectories/evo/KITTI_00_gt_times.txt"), 20));
+  write(dir, "freiburg1_xyz",
+        headAndTail(dataPath("trajectories/evo/freiburg1_xyz-groundtruth.txt"), 20));
+  write(dir, "kitti_00_calib", readText(dataPath("lidar_scans/kitti_00/calib.txt")));
+}
+
+/// The first `n` points of `cloud`, with its channels.
+dcl::core::PointCloud firstPoints(const dcl::core::PointCloud& cloud, std::size_t n) {
+  dcl::core::PointCloud out;
+  for (std::size_t i = 0; i < n && i < cloud.size(); ++i) {
+    out.points.push_back(cloud.points[i]);
+    if (cloud.hasIntensity()) out.intensity.push_back(cloud.intensity[i]);
+    if (cloud.hasTime()) out.time.push_back(cloud.time[i]);
+    if (cloud.hasRing()) out.ring.push_back(cloud.ring[i]);
+  }
+  return out;
+}
+
+/// Real points with every channel: a KITTI scan's, with a firing time and a ring.
+dcl::core::PointCloud everyChannel(const dcl::core::PointCloud& scan) {
+  dcl::core::PointCloud cloud = firstPoints(scan, 40);
+  for (std::size_t i = 0; i < cloud.size(); ++i) {
+    cloud.time.push_back(static_cast<float>(i) * 1e-3F);
+    cloud.ring.push_back(static_cast<std::uint16_t>(i % 64));
+  }
+  return cloud;
+}
+
+void writeCloudFileSeeds(const std::filesystem::path& dir, const dcl::core::PointCloud& scan) {
+  namespace io = dcl::io;
+  std::filesystem::create_directories(dir / "pcd");
+  std::filesystem::create_directories(dir / "ply");
+  const dcl::core::PointCloud full = everyChannel(scan);
+  const dcl::core::PointCloud pcd = firstPoints(
+      io::readPcd(dataPath("lidar_scans/hdl_outdoor_pair_fast_gicp/251370668.pcd")), 40);
+  const dcl::core::PointCloud ply =
+      firstPoints(io::readPly(dataPath("lidar_scans/small_gicp_pair/target.ply")), 40);
+  for (const auto& [name, encoding] : {std::pair{"ascii", io::PcdEncoding::kAscii},
+                                       {"binary", io::PcdEncoding::kBinary},
+                                       {"compressed", io::PcdEncoding::kBinaryCompressed}}) {
+    io::writePcd((dir / "pcd" / (std::string("kitti_") + name)).string(), full, {encoding});
+    io::writePcd((dir / "pcd" / (std::string("hdl_") + name)).string(), pcd, {encoding});
+  }
+  const std::vector<Eigen::Vector3f> points(ply.points.begin(), ply.points.end());
+  const std::vector<dcl::io::Rgb> colours(points.size(), dcl::io::Rgb{200, 30, 90});
+  for (const auto& [name, encoding] : {std::pair{"ascii", io::PlyEncoding::kAscii},
+                                       {"binary", io::PlyEncoding::kBinaryLittleEndian}}) {
+    io::writePly((dir / "ply" / (std::string("kitti_") + name)).string(), full, {encoding});
+    io::writePly((dir / "ply" / (std::string("small_gicp_") + name)).string(), ply, {encoding});
+    io::writeColouredPly((dir / "ply" / (std::string("coloured_") + name)).string(), points,
+                         colours, {encoding});
+  }
+  // Big-endian doubles and a face element with a list, which the reader skips.
+  std::string big_endian =
+      "ply\nformat binary_big_endian 1.0\nelement vertex 1\nproperty double x\n"
+      "property double y\nproperty double z\nelement face 1\n"
+      "property list uchar int vertex_indices\nend_header\n";
+  big_endian += std::string("\x3f\xf0\0\0\0\0\0\0\x40\0\0\0\0\0\0\0\0\0\0\0\0\0\0\0", 24);
+  big_endian += std::string("\x01\0\0\0\0", 5);
+  write(dir / "ply", "big_endian_with_faces", big_endian);
+}
+
+/// The first 64 points of real scans, as KITTI stores them.
+void writeKittiScanSeeds(const std::filesystem::path& dir) {
+  for (const char* frame : {"000000", "000094", "000198"}) {
+    const std::string bytes =
+        readText(dataPath(std::string("lidar_scans/kitti_00/velodyne/") + frame + ".bin"));
+    write(dir, frame, bytes.substr(0, 64 * dcl::io::kKittiRecordBytes));
+  }
 }
 
 comm::Header header(std::uint64_t sequence) {
@@ -101,6 +230,10 @@ int main(int argc, char** argv) {
   write(dir / "descriptor", "kitti_00_000000", descriptor);
   write(dir / "cloud", "kitti_00_000000", dcl::registration::encodeVerificationCloud(scan));
   write(dir / "cloud", "kitti_00_000000_coarse", small_cloud);
+  writeGraphSeeds(dir / "g2o");
+  writePoseSeeds(dir / "poses");
+  writeCloudFileSeeds(dir, scan);
+  writeKittiScanSeeds(dir / "kitti_scan");
   std::uint64_t sequence = 1;
   for (const comm::Body& body : bodies(descriptor, small_cloud)) {
     const comm::Message m{header(sequence), body};

@@ -1,5 +1,6 @@
 #include <array>
 #include <cstring>
+#include <span>
 
 #include <fmt/format.h>
 
@@ -13,7 +14,7 @@ namespace dcl::io {
 
 namespace {
 
-core::PointCloud decodeRecords(const std::vector<char>& data, std::size_t n) {
+core::PointCloud decodeRecords(std::span<const char> data, std::size_t n) {
   core::PointCloud cloud;
   cloud.points.resize(n);
   cloud.intensity.resize(n);
@@ -40,12 +41,15 @@ std::string encodeRecords(const core::PointCloud& cloud) {
 }  // namespace
 
 core::PointCloud readKittiScan(const std::string& path) {
-  const std::vector<char> data = readFile(path);
-  if (data.empty()) throw core::FileError({path, std::nullopt, 0}, "empty file (no points)");
+  return decodeKittiScan(readFile(path), path);
+}
+
+core::PointCloud decodeKittiScan(std::span<const char> data, const std::string& name) {
+  if (data.empty()) throw core::FileError({name, std::nullopt, 0}, "empty file (no points)");
   const std::size_t n = data.size() / kKittiRecordBytes;
   if (data.size() % kKittiRecordBytes != 0) {
     throw core::FileError(
-        {path, std::nullopt, n * kKittiRecordBytes},
+        {name, std::nullopt, n * kKittiRecordBytes},
         fmt::format("partial point record: {} bytes of 16 (file size {} is not a multiple of 16)",
                     data.size() % kKittiRecordBytes, data.size()));
   }

@@ -349,9 +349,13 @@ const char* dataName(PcdEncoding encoding) {
 }  // namespace
 
 core::PointCloud readPcd(const std::string& path, const PcdReadOptions& options) {
-  const std::vector<char> data = readFile(path);
-  if (data.empty()) throw core::FileError({path, std::nullopt, 0}, "empty file");
-  ByteReader in(data, path);
+  return decodePcd(readFile(path), path, options);
+}
+
+core::PointCloud decodePcd(std::span<const char> bytes, const std::string& name,
+                           const PcdReadOptions& options) {
+  if (bytes.empty()) throw core::FileError({name, std::nullopt, 0}, "empty file");
+  ByteReader in(bytes, name);
   std::size_t line = 0;
   const PcdHeader header = parseHeader(in, line);
   switch (header.data) {

@@ -352,9 +352,13 @@ std::string colouredAscii(std::span<const Eigen::Vector3f> points, std::span<con
 }  // namespace
 
 core::PointCloud readPly(const std::string& path, const PlyReadOptions& options) {
-  const std::vector<char> data = readFile(path);
-  if (data.empty()) throw core::FileError({path, std::nullopt, 0}, "empty file");
-  ByteReader in(data, path);
+  return decodePly(readFile(path), path, options);
+}
+
+core::PointCloud decodePly(std::span<const char> bytes, const std::string& name,
+                           const PlyReadOptions& options) {
+  if (bytes.empty()) throw core::FileError({name, std::nullopt, 0}, "empty file");
+  ByteReader in(bytes, name);
   std::size_t line = 0;
   const PlyHeader header = parseHeader(in, line);
   return readBody(in, line, header, options);

@@ -65,7 +65,7 @@ void requireCount(const LineReader& in, std::size_t found, std::size_t expected,
 /// Why `R` is not (close to) a rotation, or none.
 std::optional<std::string> rotationProblem(const Eigen::Matrix3d& R) {
   const double error = (R.transpose() * R - Eigen::Matrix3d::Identity()).norm();
-  if (error > kRotationTolerance) {
+  if (!(error <= kRotationTolerance)) {  // NaN too: entries near 1e200 overflow R^T R
     return "rotation block is not orthonormal (|R^T R - I| = " + formatNumber(error) + ")";
   }
   if (R.determinant() < 0.0) return "rotation block is a reflection (determinant < 0)";

@@ -65,6 +65,14 @@ TEST(KittiScanTest, RoundTripKeepsXyzAndIntensityBitForBit) {
   EXPECT_TRUE(test::sameCloud(readKittiScan((dir / "full.bin").string()), full));
 }
 
+TEST(KittiScanTest, DecodesBytesInMemoryAsItReadsTheFile) {
+  const std::string bytes = test::readBytes(kScanDir + "/000094.bin");
+  EXPECT_TRUE(
+      test::sameCloud(decodeKittiScan(bytes, "memory"), readKittiScan(kScanDir + "/000094.bin")));
+  EXPECT_TRUE(contains(fileError([&] { decodeKittiScan(bytes.substr(0, 37), "cut.bin"); }),
+                       "cut.bin: byte 32"));
+}
+
 TEST(KittiScanTest, WritesZeroIntensityWhenAbsent) {
   const auto dir = test::freshDir("kitti_no_intensity");
   core::PointCloud cloud;

@@ -105,6 +105,19 @@ TEST_F(PcdTest, RoundTripsInEveryEncoding) {
   }
 }
 
+TEST_F(PcdTest, DecodesBytesInMemoryAsItReadsTheFile) {
+  for (auto encoding :
+       {PcdEncoding::kAscii, PcdEncoding::kBinary, PcdEncoding::kBinaryCompressed}) {
+    const std::string path = (dir_ / "memory.pcd").string();
+    writePcd(path, test::fullCloud(50), {encoding});
+    const std::string bytes = test::readBytes(path);
+    EXPECT_TRUE(test::sameCloud(decodePcd(bytes, "memory"), readPcd(path)));
+  }
+  const std::string cut = test::readBytes(kPairDir + "/251370668.pcd").substr(0, 400);
+  EXPECT_TRUE(contains(fileError([&] { decodePcd(cut, "cut.pcd"); }), "cut.pcd: byte "));
+  EXPECT_TRUE(contains(fileError([&] { decodePcd({}, "none.pcd"); }), "none.pcd"));
+}
+
 TEST_F(PcdTest, BinaryWriterReproducesTheRealFileData) {
   const std::string original = test::readBytes(kPairDir + "/251370668.pcd");
   const std::string path = (dir_ / "copy.pcd").string();

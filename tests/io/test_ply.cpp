@@ -73,6 +73,18 @@ TEST_F(PlyTest, RoundTripsInBothEncodings) {
   }
 }
 
+TEST_F(PlyTest, DecodesBytesInMemoryAsItReadsTheFile) {
+  for (auto encoding : {PlyEncoding::kAscii, PlyEncoding::kBinaryLittleEndian}) {
+    const std::string path = (dir_ / "memory.ply").string();
+    writePly(path, test::fullCloud(50), {encoding});
+    const std::string bytes = test::readBytes(path);
+    EXPECT_TRUE(test::sameCloud(decodePly(bytes, "memory"), readPly(path)));
+  }
+  const std::string cut = test::readBytes(kPairDir + "/target.ply").substr(0, 400);
+  EXPECT_TRUE(contains(fileError([&] { decodePly(cut, "cut.ply"); }), "cut.ply: byte "));
+  EXPECT_TRUE(contains(fileError([&] { decodePly({}, "none.ply"); }), "none.ply"));
+}
+
 TEST_F(PlyTest, WritesAPlainHeader) {
   const std::string path = (dir_ / "h.ply").string();
   writePly(path, test::fullCloud(2), {PlyEncoding::kAscii});

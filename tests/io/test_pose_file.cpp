@@ -201,6 +201,9 @@ std::vector<Corrupt> corruptKitti() {
       {"inf", kRow0 + "inf" + kRow1.substr(12), {":2:", "'r11'", "not finite"}},
       {"not_rotation", "2 0 0 0 0 1 0 0 0 0 1 0\n", {":1:", "not orthonormal"}},
       {"reflection", "-1 0 0 0 0 1 0 0 0 0 1 0\n", {":1:", "reflection"}},
+      {"overflowing_rotation",  // R^T R is inf - inf: NaN, which passed every comparison
+       "1e200 0 1e200 0 1e200 0 -1e200 0 0 1 0 0\n",
+       {":1:", "not orthonormal", "nan)"}},
   };
 }
 

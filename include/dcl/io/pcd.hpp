@@ -11,6 +11,7 @@
 /// and of integer type nanoseconds; times beyond 1e6 s are absolute and are made
 /// relative to the earliest point. A ring must be an integer in 0..65535.
 
+#include <span>
 #include <string>
 
 #include <dcl/core/point_cloud.hpp>
@@ -38,6 +39,11 @@ struct PcdWriteOptions {
 /// Throws core::FileError naming the file and the line (header, ASCII data) or
 /// byte offset (binary data), and the field when one is to blame.
 core::PointCloud readPcd(const std::string& path, const PcdReadOptions& options = {});
+
+/// Decodes the content of a PCD file held in memory, as readPcd reads one; its
+/// errors name `name` (where the bytes came from).
+core::PointCloud decodePcd(std::span<const char> bytes, const std::string& name,
+                           const PcdReadOptions& options = {});
 
 /// Writes `cloud` as PCD: fields x y z (F4), then intensity (F4), time (F4,
 /// seconds) and ring (U2) when present; WIDTH = points, HEIGHT = 1. Throws

@@ -42,6 +42,11 @@ struct PlyWriteOptions {
 /// or property when one is to blame.
 core::PointCloud readPly(const std::string& path, const PlyReadOptions& options = {});
 
+/// Decodes the content of a PLY file held in memory, as readPly reads one; its
+/// errors name `name` (where the bytes came from).
+core::PointCloud decodePly(std::span<const char> bytes, const std::string& name,
+                           const PlyReadOptions& options = {});
+
 /// Writes `cloud` as the `vertex` element of a PLY file: float x y z, then float
 /// intensity, float time (seconds) and ushort ring when present. Throws
 /// core::FileError on a write failure or an inconsistent cloud.
