@@ -35,6 +35,10 @@ constexpr std::uint8_t kOpConnection = 0x07;
 /// data); rosbag's chunks are 768 KiB, and one holds at least one message.
 constexpr std::uint32_t kMaxHeaderBytes = std::uint32_t{1} << 20;
 constexpr std::uint32_t kMaxChunkBytes = std::uint32_t{1} << 30;
+/// A compressed chunk may claim at most this many times its bytes (LZ4 reaches
+/// 255 at most; bz2 on real sensor data a few): a few kilobytes of a hostile
+/// bz2 stream must not unfold into a gigabyte.
+constexpr std::uint64_t kMaxCompressionRatio = 1000;
 
 [[noreturn]] void failAt(const std::string& path, std::uint64_t byte, const std::string& what) {
   throw FileError(FileLocation{path, std::nullopt, byte, std::nullopt}, what);
@@ -293,6 +297,10 @@ void BagFile::scan() {
         }
         if (*size > kMaxChunkBytes) {
           fail(fmt::format("chunk of {} bytes: corrupt (at most {})", *size, kMaxChunkBytes));
+        }
+        if (*compression != "none" && *size > kMaxCompressionRatio * data_size) {
+          fail(fmt::format("chunk says {} bytes from {} compressed: corrupt (at most {} times)",
+                           *size, data_size, kMaxCompressionRatio));
         }
         if (*compression == "none" && *size != data_size) {
           fail(fmt::format("uncompressed chunk says {} bytes and holds {}", *size, data_size));

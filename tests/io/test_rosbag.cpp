@@ -357,6 +357,21 @@ TEST_F(RosbagTest, ReadsABagWhoseRecordingStoppedBeforeItsIndex) {
   EXPECT_TRUE(contains(fileError([&] { listBagTopics(path); }), "the recording may have been "));
 }
 
+TEST_F(RosbagTest, ACompressedChunkMayNotClaimAGigabyteFromAFewBytes) {
+  // A chunk's header says how large it is once decompressed; a claim far past
+  // what its compressed bytes can hold is refused before any is decompressed.
+  std::string bytes = test::readBytes(variant("bz2"));
+  const std::size_t field = bytes.find("size=", bytes.find("compression=bz2"));
+  ASSERT_NE(field, std::string::npos);
+  const std::uint32_t claimed = 600'000'000;
+  std::memcpy(bytes.data() + field + 5, &claimed, 4);
+  const std::string path = (dir_ / "bomb.bag").string();
+  test::writeBytes(path, bytes);
+  const std::string msg = fileError([&] { listBagTopics(path); });
+  EXPECT_TRUE(contains(msg, "chunk says 600000000 bytes from ")) << msg;
+  EXPECT_TRUE(contains(msg, "compressed: corrupt (at most 1000 times)")) << msg;
+}
+
 TEST_F(RosbagTest, CorruptedBagsAreErrorsOrReadNeverACrash) {
   // 50 random bytes changed, as a damaged disk or transfer does: every copy is
   // read through; each either reads or fails with a FileError naming the bag.
