@@ -99,8 +99,10 @@ void convertBagClouds(const ConvertOptions& o) {
 
 std::string describeTopics(const std::vector<io::BagTopic>& topics) {
   std::string list;
-  for (const auto& t : topics)
-    list += fmt::format("\n  {} ({}, {} messages)", t.name, t.type, t.messages);
+  for (const auto& t : topics) {
+    list += fmt::format("{}{} ({}, {} messages)", list.empty() ? " " : ", ", t.name, t.type,
+                        t.messages);
+  }
   return list;
 }
 

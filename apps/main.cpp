@@ -29,6 +29,11 @@ std::string printable(std::string_view text) {
     for (std::size_t k = 1; k < length; ++k) {
       if (i + k >= text.size() || (static_cast<unsigned char>(text[i + k]) >> 6) != 0x2) length = 0;
     }
+    if (c == '\n' || c == '\t') {  // a message of several lines reads on one
+      out.push_back(' ');
+      ++i;
+      continue;
+    }
     if (length == 0 || c < 0x20 || c == 0x7f) {
       constexpr std::string_view kHex = "0123456789abcdef";
       out.append("\\x").push_back(kHex[c >> 4]);
