@@ -1,6 +1,4 @@
 #include <algorithm>
-#include <array>
-#include <charconv>
 #include <cmath>
 #include <limits>
 #include <optional>
@@ -138,11 +136,30 @@ void decode(const YAML::Node& node, const Where& where, T& out) {
   }
 }
 
-/// One mapping being read: its node, the dotted prefix of its keys, the keys claimed.
+/// A field of a mapping being read: its value as written, and its key's place
+/// (null when the document does not set it).
+struct Seen {
+  std::string name;
+  std::string text;
+  YAML::Mark key_mark;
+};
+
+/// One mapping being read: its node, the dotted prefix of its keys, where its
+/// own key is (null at the top), the keys claimed and the fields visited.
 struct Frame {
   YAML::Node node;
   std::string prefix;
+  YAML::Mark mark = YAML::Mark::null_mark();
   std::vector<std::string> known{};
+  std::vector<Seen> seen{};
+
+  /// The field `name` visited last; none for a name not visited.
+  [[nodiscard]] const Seen* find(std::string_view name) const {
+    for (auto it = seen.rbegin(); it != seen.rend(); ++it) {
+      if (it->name == name) return &*it;
+    }
+    return nullptr;
+  }
 };
 
 std::string joinKeys(const std::vector<std::string>& keys) {
@@ -180,66 +197,6 @@ YAML::Node parseDocument(std::string_view text, const std::string& source) {
   return root;
 }
 
-// ---- writing --------------------------------------------------------------
-
-std::string formatReal(double value) {
-  if (std::isinf(value)) return value > 0 ? ".inf" : "-.inf";
-  if (std::isnan(value)) return ".nan";
-  std::array<char, 32> buffer{};
-  const auto result = std::to_chars(buffer.data(), buffer.data() + buffer.size(), value);
-  return {buffer.data(), result.ptr};
-}
-
-std::string formatReal(float value) {
-  if (!std::isfinite(value)) return formatReal(static_cast<double>(value));
-  std::array<char, 32> buffer{};
-  const auto result = std::to_chars(buffer.data(), buffer.data() + buffer.size(), value);
-  return {buffer.data(), result.ptr};
-}
-
-std::string escapeChar(char c) {
-  switch (c) {
-    case '"':
-      return "\\\"";
-    case '\\':
-      return "\\\\";
-    case '\n':
-      return "\\n";
-    case '\t':
-      return "\\t";
-    default:
-      break;
-  }
-  const auto byte = static_cast<unsigned char>(c);
-  if (byte >= 0x20 && byte != 0x7f) return std::string(1, c);
-  constexpr std::string_view kHex = "0123456789ABCDEF";
-  return std::string("\\x") + kHex[byte >> 4] + kHex[byte & 0xf];
-}
-
-/// A YAML double-quoted scalar: loads back to exactly `text`.
-std::string quote(std::string_view text) {
-  std::string out = "\"";
-  for (const char c : text) out += escapeChar(c);
-  return out + "\"";
-}
-
-template <class T>
-std::string formatValue(const T& value) {
-  if constexpr (std::is_same_v<T, bool>) {
-    return value ? "true" : "false";
-  } else if constexpr (std::is_integral_v<T>) {
-    return std::to_string(value);
-  } else if constexpr (std::is_floating_point_v<T>) {
-    return formatReal(value);
-  } else if constexpr (std::is_same_v<T, std::string>) {
-    return quote(value);
-  } else {
-    std::string out = "[";
-    for (const auto& item : value) out += (out.size() > 1 ? ", " : "") + formatValue(item);
-    return out + "]";
-  }
-}
-
 }  // namespace
 
 // ---- YamlConfigReader ------------------------------------------------------
@@ -270,7 +227,33 @@ struct YamlConfigReader::State {
 
   template <class T>
   void apply(std::string_view name, T& value) {
-    if (const auto claimed = claim(name)) decode(claimed->value, claimed->where, value);
+    const auto claimed = claim(name);
+    if (claimed) decode(claimed->value, claimed->where, value);
+    see(name, core::configTextOf(value), claimed);
+  }
+
+  void see(std::string_view name, std::string text, const std::optional<Claimed>& claimed) {
+    frames.back().seen.push_back(Seen{std::string(name), std::move(text),
+                                      claimed ? claimed->where.key_mark : YAML::Mark::null_mark()});
+  }
+
+  /// Throws for a broken rule on field `name` (see onCheck).
+  [[noreturn]] void failRule(std::string_view name, std::string_view rule,
+                             std::string_view related) const {
+    const Frame& frame = frames.back();
+    const Seen* field = frame.find(name);
+    const Seen* other = related.empty() ? nullptr : frame.find(related);
+    std::string what = std::string(rule) + ", found " + (field ? field->text : "?");
+    YAML::Mark mark = field ? field->key_mark : YAML::Mark::null_mark();
+    if (mark.is_null()) {
+      // The default broke the rule only because of another field this document sets.
+      const bool other_set = other != nullptr && !other->key_mark.is_null();
+      mark = other_set ? other->key_mark : frame.mark;
+      what += other_set ? " (the default; " + std::string(related) + " is set on line " +
+                              std::to_string(mark.line + 1) + ")"
+                        : " (the default; the file does not set it)";
+    }
+    fail(Where{source, frame.prefix + std::string(name)}, mark, what);
   }
 };
 
@@ -322,13 +305,15 @@ void YamlConfigReader::onField(std::string_view name, std::vector<std::string>& 
 void YamlConfigReader::onFixedVector(std::string_view name, std::span<double> value,
                                      std::string_view) {
   const auto claimed = state_->claim(name);
-  if (!claimed) return;
-  const auto list = decodeList<double>(claimed->value, claimed->where);
-  if (list.size() != value.size()) {
-    failType(claimed->where, claimed->value,
-             "a sequence of " + std::to_string(value.size()) + " numbers");
+  if (claimed) {
+    const auto list = decodeList<double>(claimed->value, claimed->where);
+    if (list.size() != value.size()) {
+      failType(claimed->where, claimed->value,
+               "a sequence of " + std::to_string(value.size()) + " numbers");
+    }
+    std::copy(list.begin(), list.end(), value.begin());
   }
-  std::copy(list.begin(), list.end(), value.begin());
+  state_->see(name, core::configText(std::span<const double>(value)), claimed);
 }
 
 bool YamlConfigReader::enterSection(std::string_view name, std::string_view) {
@@ -337,7 +322,8 @@ bool YamlConfigReader::enterSection(std::string_view name, std::string_view) {
   if (!claimed->value.IsMap() && !claimed->value.IsNull()) {
     failType(claimed->where, claimed->value, "a mapping of settings");
   }
-  state_->frames.push_back(Frame{claimed->value, claimed->where.key + "."});
+  state_->frames.push_back(
+      Frame{claimed->value, claimed->where.key + ".", claimed->where.key_mark});
   return true;
 }
 
@@ -346,34 +332,68 @@ void YamlConfigReader::leaveSection() {
   state_->frames.pop_back();
 }
 
+void YamlConfigReader::onCheck(bool ok, std::string_view name, std::string_view rule,
+                               std::string_view related) {
+  if (!ok) state_->failRule(name, rule, related);
+}
+
 // ---- YamlConfigWriter ------------------------------------------------------
 
 struct YamlConfigWriter::State {
-  std::string out;
+  /// A line of the output to be: a field or a section's header, its comments and rules.
+  struct Entry {
+    std::size_t depth = 0;
+    bool blank_before = false;
+    std::string doc{};
+    std::string name{};
+    std::optional<std::string> value{};  ///< none: a section's header
+    std::vector<std::string> rules{};
+  };
+  std::vector<Entry> entries{};
   std::size_t depth = 0;
   bool after_section = false;  ///< a top-level section just ended
 
-  /// A blank line before each top-level section and before what follows one.
-  void separate(bool section) {
-    if (depth == 0 && !out.empty() && (section || after_section)) out += "\n";
+  /// Adds an entry; a blank line before each top-level section and before what follows one.
+  void add(std::string_view name, std::optional<std::string> value, std::string_view doc) {
+    const bool section = !value;
+    const bool blank = depth == 0 && !entries.empty() && (section || after_section);
     after_section = false;
-  }
-
-  [[nodiscard]] std::string indent() const { return std::string(2 * depth, ' '); }
-
-  void comment(std::string_view doc) {
-    while (!doc.empty()) {
-      const std::size_t end = std::min(doc.find('\n'), doc.size());
-      out += indent() + "# " + std::string(doc.substr(0, end)) + "\n";
-      doc.remove_prefix(std::min(end + 1, doc.size()));
-    }
+    entries.push_back(Entry{depth, blank, std::string(doc), std::string(name), std::move(value)});
   }
 
   template <class T>
   void write(std::string_view name, const T& value, std::string_view doc) {
-    separate(false);
-    comment(doc);
-    out += indent() + std::string(name) + ": " + formatValue(value) + "\n";
+    add(name, core::configTextOf(value), doc);
+  }
+
+  /// The entry of field `name` in the current section; none if not written.
+  Entry* find(std::string_view name) {
+    for (auto it = entries.rbegin(); it != entries.rend() && it->depth >= depth; ++it) {
+      if (it->depth == depth && it->value && it->name == name) return &*it;
+    }
+    return nullptr;
+  }
+
+  [[nodiscard]] std::string render() const {
+    std::string out;
+    for (const Entry& entry : entries) {
+      const std::string indent(2 * entry.depth, ' ');
+      if (entry.blank_before) out += "\n";
+      comment(out, indent, entry.doc);
+      std::string rules;
+      for (const auto& rule : entry.rules) rules.append(rules.empty() ? "" : "; ").append(rule);
+      comment(out, indent, rules);
+      out += indent + entry.name + ":" + (entry.value ? " " + *entry.value : "") + "\n";
+    }
+    return out;
+  }
+
+  static void comment(std::string& out, const std::string& indent, std::string_view text) {
+    while (!text.empty()) {
+      const std::size_t end = std::min(text.find('\n'), text.size());
+      out += indent + "# " + std::string(text.substr(0, end)) + "\n";
+      text.remove_prefix(std::min(end + 1, text.size()));
+    }
   }
 };
 
@@ -382,7 +402,7 @@ YamlConfigWriter::YamlConfigWriter() : state_(std::make_unique<State>()) {}
 YamlConfigWriter::~YamlConfigWriter() = default;
 
 std::string YamlConfigWriter::text() const {
-  return state_->out.empty() ? "{}\n" : state_->out;
+  return state_->entries.empty() ? "{}\n" : state_->render();
 }
 
 void YamlConfigWriter::onField(std::string_view name, bool& value, std::string_view doc) {
@@ -420,13 +440,11 @@ void YamlConfigWriter::onField(std::string_view name, std::vector<std::string>& 
 
 void YamlConfigWriter::onFixedVector(std::string_view name, std::span<double> value,
                                      std::string_view doc) {
-  state_->write(name, std::vector<double>(value.begin(), value.end()), doc);
+  state_->add(name, core::configText(std::span<const double>(value)), doc);
 }
 
 bool YamlConfigWriter::enterSection(std::string_view name, std::string_view doc) {
-  state_->separate(true);
-  state_->comment(doc);
-  state_->out += state_->indent() + std::string(name) + ":\n";
+  state_->add(name, std::nullopt, doc);
   ++state_->depth;
   return true;
 }
@@ -434,6 +452,14 @@ bool YamlConfigWriter::enterSection(std::string_view name, std::string_view doc)
 void YamlConfigWriter::leaveSection() {
   --state_->depth;
   state_->after_section = state_->depth == 0;
+}
+
+void YamlConfigWriter::onCheck(bool, std::string_view name, std::string_view rule,
+                               std::string_view) {
+  State::Entry* entry = state_->find(name);
+  if (entry == nullptr) return;
+  if (std::find(entry->rules.begin(), entry->rules.end(), rule) == entry->rules.end())
+    entry->rules.emplace_back(rule);
 }
 
 std::string readConfigText(const std::string& path) {

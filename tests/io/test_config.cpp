@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/io/config.hpp>
 
@@ -277,6 +278,139 @@ TEST(Config, TruncatedDumpLoadsOrFailsCleanly) {
     }
   }
   EXPECT_GT(failures, 0u);
+}
+
+// ---- rules ----------------------------------------------------------------------
+
+/// A section whose fields carry rules, one of each kind, and one rule across fields.
+struct RangeConfig {
+  double min_range = 1.0;   // metres
+  double max_range = 50.0;  // metres
+  int rows = 8;             // bins
+  std::string kind = "a";   // one of a few names
+
+  template <class Visitor>
+  void visit(Visitor& v) {
+    v.field("max_range", max_range, "farthest, metres").positive();
+    v.field("min_range", min_range, "nearest, metres")
+        .nonNegative()
+        .lessThan(max_range, "max_range");
+    v.field("rows", rows, "bins").within(1, 64).rule(rows % 2 == 0, "must be even");
+    v.field("kind", kind, "a | b").oneOf({"a", "b"});
+  }
+
+  bool operator==(const RangeConfig&) const = default;
+};
+
+struct RuledConfig {
+  RangeConfig range{};
+  double rate = 0.5;  // a share
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitZ();
+
+  template <class Visitor>
+  void visit(Visitor& v) {
+    v.section("range", range, "a range");
+    v.field("rate", rate, "a share").within(0.0, 1.0, core::Interval::open_high);
+    v.field("axis", axis, "a direction").rule(axis.norm() > 0.0, "must not be zero");
+  }
+
+  bool operator==(const RuledConfig&) const = default;
+};
+
+/// The FileError of loading `yaml` into a RuledConfig.
+core::FileError ruleError(const std::string& yaml) {
+  RuledConfig config;
+  try {
+    applyYaml(yaml, config, "rules.yaml");
+  } catch (const core::FileError& e) {
+    EXPECT_EQ(config, RuledConfig{}) << "a refused document changed the config";
+    return e;
+  }
+  ADD_FAILURE() << "no error for:\n" << yaml;
+  return core::FileError({}, "");
+}
+
+TEST(ConfigRules, NameTheFieldItsLineTheRuleAndTheValue) {
+  struct Case {
+    std::string yaml;
+    std::size_t line;
+    std::string key;
+    std::string what;
+  };
+  const std::vector<Case> cases = {
+      {"range:\n  rows: 0\n", 2, "range.rows", "must be in [1, 64], found 0"},
+      {"range:\n  rows: 7\n", 2, "range.rows", "must be even, found 7"},
+      {"range:\n  kind: c\n", 2, "range.kind", "must be one of a, b, found \"c\""},
+      {"range:\n  max_range: -1\n", 2, "range.max_range", "must be greater than 0, found -1"},
+      {"range:\n  max_range: .inf\n", 2, "range.max_range",
+       "must be finite and greater than 0, found .inf"},
+      {"range:\n  min_range: 60\n", 2, "range.min_range",
+       "must be less than max_range (50), found 60"},
+      {"range: {min_range: 5, max_range: 4}\n", 1, "range.min_range",
+       "must be less than max_range (4), found 5"},
+      {"rate: 1\n", 1, "rate", "must be in [0, 1), found 1"},
+      {"axis: [0, 0, 0]\n", 1, "axis", "must not be zero, found [0, 0, 0]"},
+  };
+  for (const Case& c : cases) {
+    const core::FileError e = ruleError(c.yaml);
+    EXPECT_EQ(e.location().path, "rules.yaml") << c.yaml;
+    EXPECT_EQ(e.location().line, c.line) << c.yaml;
+    EXPECT_EQ(e.location().field, c.key) << c.yaml;
+    EXPECT_NE(std::string(e.what()).find(c.what), std::string::npos) << e.what();
+  }
+}
+
+TEST(ConfigRules, ADefaultBrokenByAnotherFieldIsBlamedOnThatFieldsLine) {
+  // min_range keeps its default (1); the file's max_range (0.5) breaks its rule.
+  const core::FileError e = ruleError("# c\nrange:\n  rows: 4\n  max_range: 0.5\n");
+  EXPECT_EQ(e.location().line, 4u);
+  EXPECT_EQ(e.location().field, "range.min_range");
+  EXPECT_NE(std::string(e.what()).find("must be less than max_range (0.5), found 1 (the default; "
+                                       "max_range is set on line 4)"),
+            std::string::npos)
+      << e.what();
+}
+
+TEST(ConfigRules, TheFirstBrokenRuleInVisitingOrderWins) {
+  const core::FileError e = ruleError("rate: 2\nrange:\n  kind: z\n  rows: 0\n");
+  EXPECT_EQ(e.location().field, "range.rows");
+  EXPECT_EQ(e.location().line, 4u);
+}
+
+TEST(ConfigRules, TheDumpWritesEachRuleBesideItsField) {
+  const std::string text = dumpConfig(RuledConfig{});
+  EXPECT_NE(text.find("  # nearest, metres\n"
+                      "  # must be at least 0; must be less than max_range (50)\n"
+                      "  min_range: 1\n"),
+            std::string::npos)
+      << text;
+  EXPECT_NE(text.find("  # must be in [1, 64]; must be even\n  rows: 8\n"), std::string::npos)
+      << text;
+  EXPECT_NE(text.find("# must be in [0, 1)\nrate: 0.5\n"), std::string::npos) << text;
+  RuledConfig loaded;
+  loaded.rate = 0.25;
+  applyYaml(text, loaded, "dump.yaml");
+  EXPECT_EQ(loaded, RuledConfig{});
+  EXPECT_EQ(dumpConfig(loaded), text);
+}
+
+TEST(ConfigRules, ACheckerRefusesAStructBuiltInCode) {
+  EXPECT_FALSE(core::firstViolation(RuledConfig{}));
+  RuledConfig config;
+  config.range.min_range = 70.0;
+  config.rate = -1.0;
+  const auto violation = core::firstViolation(config);
+  ASSERT_TRUE(violation);
+  EXPECT_EQ(violation->key, "range.min_range");
+  EXPECT_EQ(violation->rule, "must be less than max_range (50)");
+  EXPECT_EQ(violation->value, "70");
+  try {
+    core::checkConfig(config, "ruled config");
+    ADD_FAILURE() << "no error";
+  } catch (const core::Error& e) {
+    EXPECT_EQ(std::string(e.what()),
+              "ruled config: field 'range.min_range': must be less than max_range (50), found 70");
+  }
 }
 
 }  // namespace
