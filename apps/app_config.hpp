@@ -4,6 +4,8 @@
 /// a default on every field, filled from YAML by `--config FILE`.
 /// `dcl-slam config --dump` prints it.
 
+#include <algorithm>
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -27,6 +29,9 @@ namespace dcl::apps {
 
 /// Trajectory evaluation defaults (`eval ate`, `eval rpe`, and runs that report ATE).
 struct EvalSection {
+  /// The largest RPE pair distance (frames or metres): far beyond any sequence.
+  static constexpr double kMaxRpeDelta = 1e9;
+
   double max_time_diff = 0.01;  ///< s, largest stamp difference for associating poses (evo: 0.01)
   double time_offset = 0.0;     ///< s, added to the estimate's stamps before association
   std::string alignment = "none";         ///< none | se3 | sim3 (evo's default: none)
@@ -38,13 +43,22 @@ struct EvalSection {
 
   template <class Visitor>
   void visit(Visitor& v) {
-    v.field("max_time_diff", max_time_diff, "s, largest stamp difference to associate poses");
-    v.field("time_offset", time_offset, "s, added to the estimate's stamps before association");
-    v.field("alignment", alignment, "none | se3 | sim3");
-    v.field("rpe_delta", rpe_delta, "RPE pair distance, in rpe_delta_unit");
-    v.field("rpe_delta_unit", rpe_delta_unit, "frames | meters");
-    v.field("kitti_lengths", kitti_lengths, "m, KITTI metric segment lengths");
-    v.field("kitti_step", kitti_step, "frames between KITTI metric segment starts");
+    v.field("max_time_diff", max_time_diff, "s, largest stamp difference to associate poses")
+        .nonNegative();
+    v.field("time_offset", time_offset, "s, added to the estimate's stamps before association")
+        .finite();
+    v.field("alignment", alignment, "none | se3 | sim3").oneOf({"none", "se3", "sim3"});
+    v.field("rpe_delta", rpe_delta, "RPE pair distance, in rpe_delta_unit")
+        .within(0.0, kMaxRpeDelta, core::Interval::open_low);
+    v.field("rpe_delta_unit", rpe_delta_unit, "frames | meters").oneOf({"frames", "meters"});
+    v.check(rpe_delta_unit != "frames" || (rpe_delta >= 1.0 && std::floor(rpe_delta) == rpe_delta),
+            "rpe_delta", "must be a whole number of frames when rpe_delta_unit is frames",
+            "rpe_delta_unit");
+    v.field("kitti_lengths", kitti_lengths, "m, KITTI metric segment lengths")
+        .rule(std::ranges::all_of(kitti_lengths,
+                                  [](double l) { return l > 0.0 && std::isfinite(l); }),
+              "must hold positive finite lengths");
+    v.field("kitti_step", kitti_step, "frames between KITTI metric segment starts").positive();
   }
 };
 
@@ -83,21 +97,28 @@ struct RobotSection {
   template <class Visitor>
   void visit(Visitor& v) {
     v.field("optimise_period", optimise_period,
-            "s from the start of one optimisation round to the start of the next, at least");
-    v.field("round_timeout", round_timeout,
-            "s a round may go without a step before it is given up");
+            "s from the start of one optimisation round to the start of the next, at least")
+        .positive();
+    v.field("round_timeout", round_timeout, "s a round may go without a step before it is given up")
+        .positive();
     v.field("announce_period", announce_period,
-            "s between announcements of the robot's loop neighbours (how groups form)");
+            "s between announcements of the robot's loop neighbours (how groups form)")
+        .positive();
     v.field("refine_steps", refine_steps,
-            "refinement steps after DGS in each optimisation round at most (0: DGS alone)");
-    v.field("dgs_steps", dgs_steps, "DGS steps per stage in each optimisation round at most");
+            "refinement steps after DGS in each optimisation round at most (0: DGS alone)")
+        .nonNegative();
+    v.field("dgs_steps", dgs_steps, "DGS steps per stage in each optimisation round at most")
+        .positive();
     v.field("candidate_spacing", candidate_spacing,
-            "own keyframes between two loop candidates sent to one neighbour, at least (1: all)");
+            "own keyframes between two loop candidates sent to one neighbour, at least (1: all)")
+        .positive();
     v.field("loop_sigma_translation", loop_sigma_translation,
-            "m, noise added to every verified loop (the registration's covariance is optimistic)");
-    v.field("loop_sigma_rotation", loop_sigma_rotation, "rad, likewise");
+            "m, noise added to every verified loop (the registration's covariance is optimistic)")
+        .nonNegative();
+    v.field("loop_sigma_rotation", loop_sigma_rotation, "rad, likewise").nonNegative();
     v.field("loop_sigma_tilt", loop_sigma_tilt,
-            "rad, instead about the keyframe's x and y axes (roll, pitch) when larger");
+            "rad, instead about the keyframe's x and y axes (roll, pitch) when larger")
+        .nonNegative();
     v.field("solve_alone", solve_alone,
             "with no one in range to optimise with, solve the own graph against the "
             "neighbours' poses as the last round left them");
@@ -128,7 +149,8 @@ struct AppConfig {
 
   template <class Visitor>
   void visit(Visitor& v) {
-    v.field("log_level", log_level, "trace | debug | info | warn | error | off");
+    v.field("log_level", log_level, "trace | debug | info | warn | error | off")
+        .oneOf({"trace", "debug", "info", "warn", "error", "off"});
     v.section("eval", eval, "trajectory evaluation");
     v.section("odometry", odometry, "the built-in LiDAR odometry");
     v.section("external", external, "external odometry (poses from another front-end)");
@@ -155,8 +177,9 @@ std::string defaultDataDir();
 /// A robot node's configuration: the modules' sections and the robot's timers.
 robot::RobotConfig robotConfig(const AppConfig& config);
 
-/// Checks the values the YAML types cannot (names from a fixed set, ranges);
-/// throws core::FileError naming `source` and the dotted key.
+/// Checks every rule of the configuration, as reading a file does (here for
+/// what was set after it, such as --log-level); throws core::FileError naming
+/// `source`, the dotted key, the rule and the value.
 void validate(const AppConfig& config, const std::string& source);
 
 }  // namespace dcl::apps

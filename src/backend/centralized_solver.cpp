@@ -8,6 +8,7 @@
 
 #include <dcl/backend/centralized_solver.hpp>
 #include <dcl/backend/dgs.hpp>
+#include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
 
 #include "se3_cost.hpp"
@@ -71,7 +72,12 @@ void initialise(PoseGraph& graph, const std::string& initialisation) {
 
 }  // namespace
 
+void validate(const SolverConfig& config) {
+  core::checkConfig(config, "solver config");
+}
+
 SolverSummary solveCentralized(PoseGraph& graph, const SolverConfig& config) {
+  validate(config);
   const auto start = std::chrono::steady_clock::now();
   SolverSummary summary;
   summary.initial_cost = graphCost(graph);

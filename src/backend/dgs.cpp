@@ -8,6 +8,7 @@
 #include <utility>
 
 #include <dcl/backend/dgs.hpp>
+#include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
 
 #include "dgs_block.hpp"
@@ -70,18 +71,7 @@ bool plausiblePoses(const std::map<core::PoseKey, Eigen::Isometry3d>& values) {
 }  // namespace
 
 void validate(const DgsConfig& config) {
-  const auto fail = [](const std::string& field, const std::string& what) {
-    throw core::Error("dgs config: field '" + field + "' " + what);
-  };
-  if (!(config.gamma > 0.0 && config.gamma < 2.0)) fail("gamma", "must lie in (0, 2)");
-  if (!(config.rotation_threshold >= 0.0) || !std::isfinite(config.rotation_threshold)) {
-    fail("rotation_threshold", "must be a finite number >= 0");
-  }
-  if (!(config.pose_threshold >= 0.0) || !std::isfinite(config.pose_threshold)) {
-    fail("pose_threshold", "must be a finite number >= 0");
-  }
-  if (config.max_rotation_iterations < 1) fail("max_rotation_iterations", "must be at least 1");
-  if (config.max_pose_iterations < 1) fail("max_pose_iterations", "must be at least 1");
+  core::checkConfig(config, "dgs config");
 }
 
 struct DgsAgent::Impl {

@@ -8,6 +8,7 @@
 
 #include <dcl/backend/dgs.hpp>
 #include <dcl/backend/distributed_refine.hpp>
+#include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
 
 #include "pose_block_solver.hpp"
@@ -19,18 +20,6 @@ using PoseMap = std::map<core::PoseKey, Eigen::Isometry3d>;
 
 /// Levenberg-Marquardt iterations at most for a robot that solves its block alone.
 constexpr int kAloneIterations = 100;
-/// Coarse cells along a robot's longest side at most: (64 + 1)^3 nodes of six
-/// unknowns is already more than a coarse level should hold.
-constexpr int kMaxCoarseCells = 64;
-
-void require(bool ok, const char* field, const std::string& what) {
-  if (!ok) throw core::Error(std::string("refine config: ") + field + " " + what);
-}
-
-bool nonNegative(double value) {
-  return std::isfinite(value) && value >= 0.0;
-}
-
 /// The local graph of every robot: its nodes, every factor touching one of
 /// them whose two ends the graph holds, the neighbours' nodes those factors
 /// name, and its fixed nodes.
@@ -55,26 +44,7 @@ std::map<core::RobotId, PoseGraph> localGraphs(const PoseGraph& graph) {
 }  // namespace
 
 void validate(const RefineConfig& config) {
-  require(config.max_rounds >= 0, "max_rounds",
-          "must be at least 0, got " + std::to_string(config.max_rounds));
-  require(nonNegative(config.relative_tolerance), "relative_tolerance",
-          "must be finite and at least 0, got " + std::to_string(config.relative_tolerance));
-  require(config.window >= 1, "window", "must be at least 1, got " + std::to_string(config.window));
-  require(config.block_iterations >= 1, "block_iterations",
-          "must be at least 1, got " + std::to_string(config.block_iterations));
-  require(config.factorisation_reuse >= 0, "factorisation_reuse",
-          "must be at least 0, got " + std::to_string(config.factorisation_reuse));
-  require(nonNegative(config.block_tolerance), "block_tolerance",
-          "must be finite and at least 0, got " + std::to_string(config.block_tolerance));
-  require(config.coarse_cells >= 0 && config.coarse_cells <= kMaxCoarseCells, "coarse_cells",
-          "must be in 0.." + std::to_string(kMaxCoarseCells) + ", got " +
-              std::to_string(config.coarse_cells));
-  require(nonNegative(config.coarse_refresh) && config.coarse_refresh < 1.0, "coarse_refresh",
-          "must be in [0, 1), got " + std::to_string(config.coarse_refresh));
-  require(nonNegative(config.coarse_trust) && config.coarse_trust < 1.0, "coarse_trust",
-          "must be in [0, 1), got " + std::to_string(config.coarse_trust));
-  require(nonNegative(config.separator_tolerance), "separator_tolerance",
-          "must be finite and at least 0, got " + std::to_string(config.separator_tolerance));
+  core::checkConfig(config, "refine config");
 }
 
 struct RefineAgent::Impl {

@@ -12,6 +12,7 @@
 #include <dds/dds.h>
 
 #include <dcl/comm/dds_transport.hpp>
+#include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/core/log.hpp>
 
@@ -24,11 +25,6 @@ namespace {
 /// One topic per QoS: on a shared topic a best-effort reader would match the
 /// reliable writer too, and every reliable sample would arrive twice.
 constexpr std::array<const char*, 2> kTopicNames = {"dcl_reliable", "dcl_best_effort"};
-
-constexpr std::uint32_t kMaxDomain = 232;  // DDSI port mapping: 7400 + 250 * domain < 65536
-constexpr std::uint32_t kMaxHistory = 65536;
-constexpr std::size_t kMaxSwarmChars = 64;
-constexpr std::size_t kMaxInterfaceChars = 15;  // IFNAMSIZ - 1 on Linux
 
 /// How long a reliable write may wait for acknowledgements to free the
 /// writer's history. Transport::send must not stall the robot's loop; a write
@@ -96,13 +92,6 @@ class CycloneLog {
 dds_entity_t checked(dds_entity_t entity, const std::string& call) {
   if (entity < 0) failCall(call, entity);
   return entity;
-}
-
-bool allOf(std::string_view text, std::string_view extra) {
-  return std::all_of(text.begin(), text.end(), [&](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
-           extra.find(c) != std::string_view::npos;
-  });
 }
 
 /// Cyclone's configuration for one interface with multicast discovery on it
@@ -253,21 +242,7 @@ class Loan {
 }  // namespace
 
 void validate(const DdsConfig& config) {
-  const auto fail = [](const std::string& field, const std::string& what) {
-    throw core::Error("dds config: field '" + field + "' " + what);
-  };
-  if (config.domain > kMaxDomain)
-    fail("domain", "is " + std::to_string(config.domain) + ", must be in 0..232");
-  // Partition names match with wildcards ('*', '?'): a swarm named "*" would hear every swarm.
-  if (config.swarm.empty() || config.swarm.size() > kMaxSwarmChars || !allOf(config.swarm, "_-.:/"))
-    fail("swarm",
-         "is '" + config.swarm + "', must be 1..64 letters, digits or '_', '-', '.', ':', '/'");
-  if (config.interface.size() > kMaxInterfaceChars || !allOf(config.interface, "_-.:"))
-    fail("interface", "is '" + config.interface +
-                          "', must be a network interface name (up to 15 letters, digits or "
-                          "'_', '-', '.', ':') or empty");
-  if (config.history < 1 || config.history > kMaxHistory)
-    fail("history", "is " + std::to_string(config.history) + ", must be in 1..65536");
+  core::checkConfig(config, "dds config");
 }
 
 struct DdsTransport::Impl {

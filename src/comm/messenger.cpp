@@ -7,6 +7,7 @@
 #include <spdlog/spdlog.h>
 
 #include <dcl/comm/messenger.hpp>
+#include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
 
 namespace dcl::comm {
@@ -123,17 +124,7 @@ std::string robot(core::RobotId id) {
 }  // namespace
 
 void validate(const MessengerConfig& config) {
-  const auto fail = [](const std::string& field, const std::string& what) {
-    throw core::Error("messenger config: field '" + field + "' " + what);
-  };
-  if (!(config.heartbeat_period > 0.0) || !std::isfinite(config.heartbeat_period))
-    fail("heartbeat_period", "must be a finite number > 0");
-  if (!(config.neighbour_timeout > config.heartbeat_period) ||
-      !std::isfinite(config.neighbour_timeout))
-    fail("neighbour_timeout", "must be finite and longer than heartbeat_period");
-  if (!(config.retransmit_after > 0.0) || !std::isfinite(config.retransmit_after))
-    fail("retransmit_after", "must be a finite number > 0");
-  if (config.window < 1) fail("window", "must be at least 1");
+  core::checkConfig(config, "messenger config");
 }
 
 struct Messenger::Impl {

@@ -10,6 +10,7 @@
 #include <utility>
 
 #include <dcl/comm/sim_radio.hpp>
+#include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
 
 namespace dcl::comm {
@@ -54,16 +55,7 @@ struct InFlight {
 }  // namespace
 
 void validate(const SimRadioConfig& config) {
-  const auto fail = [](const std::string& field, const std::string& what) {
-    throw core::Error("sim radio config: field '" + field + "' " + what);
-  };
-  const auto finiteAtLeastZero = [](double v) { return std::isfinite(v) && v >= 0.0; };
-  if (!finiteAtLeastZero(config.range)) fail("range", "must be a finite number >= 0");
-  if (!finiteAtLeastZero(config.bandwidth)) fail("bandwidth", "must be a finite number >= 0");
-  if (!finiteAtLeastZero(config.latency)) fail("latency", "must be a finite number >= 0");
-  if (!(config.drop_rate >= 0.0 && config.drop_rate < 1.0)) fail("drop_rate", "must lie in [0, 1)");
-  if (!(std::isfinite(config.meter_interval) && config.meter_interval > 0.0))
-    fail("meter_interval", "must be a finite number > 0");
+  core::checkConfig(config, "sim radio config");
 }
 
 struct SimRadio::Impl {

@@ -4,6 +4,7 @@
 
 #include <fmt/format.h>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/io/pose_file.hpp>
 #include <dcl/io/rosbag.hpp>
@@ -18,16 +19,14 @@ constexpr double kMinCovarianceDistance = 0.1;
 
 std::string formatOf(const ExternalOdometryConfig& config) {
   if (config.format != "auto") return config.format;
-  const std::string& f = config.file;
-  return f.size() >= 4 && f.compare(f.size() - 4, 4, ".bag") == 0 ? "bag" : "tum";
+  return config.readsBag() ? "bag" : "tum";
 }
 
-Eigen::Isometry3d poseOfVector(const Eigen::Matrix<double, 7, 1>& v) {
-  const Eigen::Quaterniond q(v[6], v[3], v[4], v[5]);
-  if (!v.allFinite() || std::abs(q.norm() - 1.0) > 1e-2) {
-    throw core::Error("external odometry: T_body_sensor needs a unit quaternion (qx qy qz qw)");
-  }
-  return core::makePose(v.head<3>(), q);
+/// T_body_sensor of a validated config.
+Eigen::Isometry3d bodySensorOf(const ExternalOdometryConfig& config) {
+  validate(config);
+  const Eigen::Matrix<double, 7, 1>& v = config.T_body_sensor;
+  return core::makePose(v.head<3>(), Eigen::Quaterniond(v[6], v[3], v[4], v[5]));
 }
 
 /// Rigid poses: KITTI files print rotations to 7 digits.
@@ -41,7 +40,12 @@ core::Trajectory projected(core::Trajectory trajectory) {
 
 }  // namespace
 
+void validate(const ExternalOdometryConfig& config) {
+  core::checkConfig(config, "external odometry config");
+}
+
 core::Trajectory loadExternalTrajectory(const ExternalOdometryConfig& config) {
+  validate(config);
   const std::string format = formatOf(config);
   if (format == "bag") {
     if (config.topic.empty()) throw core::Error("external odometry: a bag needs a topic");
@@ -59,7 +63,7 @@ core::Trajectory loadExternalTrajectory(const ExternalOdometryConfig& config) {
 ExternalOdometry::ExternalOdometry(core::Trajectory T_world_body,
                                    const ExternalOdometryConfig& config)
     : T_world_body_(projected(std::move(T_world_body))),
-      T_body_sensor_(poseOfVector(config.T_body_sensor)),
+      T_body_sensor_(bodySensorOf(config)),
       config_(config) {
   if (T_world_body_.empty()) throw core::Error("external odometry: the trajectory is empty");
   if (!T_world_body_.isSorted()) {

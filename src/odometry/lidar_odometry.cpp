@@ -3,6 +3,7 @@
 #include <utility>
 #include <vector>
 
+#include <dcl/core/config.hpp>
 #include <dcl/odometry/lidar_odometry.hpp>
 #include <dcl/odometry/preprocessing.hpp>
 
@@ -27,6 +28,11 @@ FrameHealth healthOf(const RegistrationResult& registration, std::string problem
   return health;
 }
 
+const OdometryConfig& validated(const OdometryConfig& config) {
+  validate(config);
+  return config;
+}
+
 /// Appends `note` to a problem description.
 void addProblem(std::string& problem, const std::string& note) {
   if (note.empty()) return;
@@ -35,8 +41,12 @@ void addProblem(std::string& problem, const std::string& note) {
 
 }  // namespace
 
+void validate(const OdometryConfig& config) {
+  core::checkConfig(config, "odometry config");
+}
+
 LidarOdometry::LidarOdometry(const OdometryConfig& config)
-    : config_(config),
+    : config_(validated(config)),
       map_(config.mapVoxelSize(), config.max_points_per_voxel),
       threshold_(config.threshold, config.max_range) {}
 

@@ -1,12 +1,25 @@
 #include <utility>
 
+#include <dcl/core/config.hpp>
 #include <dcl/odometry/local_mapper.hpp>
 
 namespace dcl::odometry {
+namespace {
+
+const LocalMapperConfig& validated(const LocalMapperConfig& config) {
+  validate(config);
+  return config;
+}
+
+}  // namespace
+
+void validate(const LocalMapperConfig& config) {
+  core::checkConfig(config, "mapper config");
+}
 
 LocalMapper::LocalMapper(core::RobotId robot, const LocalMapperConfig& config)
     : robot_(robot),
-      config_(config),
+      config_(validated(config)),
       selector_(robot, config.keyframes),
       loop_closure_(config.loops) {}
 

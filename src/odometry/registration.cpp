@@ -68,7 +68,7 @@ double gemanMcClureWeight(double squared_residual, double kernel_scale) {
 }
 
 /// The `k` map points nearest a query, closest first (k at most kMaxNeighbors).
-constexpr std::size_t kMaxNeighbors = 16;
+constexpr auto kMaxNeighbors = static_cast<std::size_t>(IcpConfig::kMaxNormalNeighbors);
 struct NearestSet {
   std::array<Eigen::Vector3d, kMaxNeighbors> points;
   std::array<double, kMaxNeighbors> squared_distances;

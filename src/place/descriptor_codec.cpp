@@ -3,6 +3,7 @@
 
 #include <zstd.h>
 
+#include <dcl/core/config.hpp>
 #include <dcl/place/descriptor_codec.hpp>
 
 namespace dcl::place {
@@ -87,7 +88,12 @@ std::vector<std::uint8_t> decompress(std::span<const std::uint8_t> frame, std::s
 
 }  // namespace
 
+void validate(const IrisCodecConfig& config) {
+  core::checkConfig(config, "LiDAR-Iris codec config");
+}
+
 std::vector<std::uint8_t> encodeIrisImage(const IrisImage& image, const IrisCodecConfig& codec) {
+  validate(codec);
   const std::size_t cells =
       static_cast<std::size_t>(image.rows) * static_cast<std::size_t>(image.columns);
   if (image.rows <= 0 || image.columns <= 0 || image.rows > 0xFFFF || image.columns > 0xFFFF ||

@@ -1,5 +1,6 @@
 #include <kiss_fftr.h>
 
+#include <dcl/core/config.hpp>
 #include <dcl/place/lidar_iris.hpp>
 
 #if defined(__SSE2__)
@@ -408,17 +409,7 @@ void checkComparable(const IrisDescriptor& a, const IrisDescriptor& b) {
 }  // namespace
 
 void validate(const IrisConfig& config) {
-  check(config.rows >= 1 && config.rows <= 1024, "rows must be in 1..1024");
-  check(config.columns >= 4 && config.columns <= 4096 && config.columns % 2 == 0,
-        "columns must be even and in 4..4096");
-  check(config.max_range > 0.0, "max_range must be positive");
-  const HeightEncoding h = config.heightEncoding();
-  check(h.slab > 0.0 && std::isfinite(h.lowest), "height slab must be positive");
-  check(config.neighbour_shifts >= 0 && config.neighbour_shifts <= config.columns / 4,
-        "neighbour_shifts must be in 0..columns/4");
-  check(config.shift_bands >= 1 && config.shift_bands <= config.rows,
-        "shift_bands must be in 1..rows");
-  LogGaborBank probe(config.columns, config.log_gabor);  // validates the filters
+  core::checkConfig(config, "LiDAR-Iris config");
 }
 
 std::span<const std::uint64_t> IrisDescriptor::featureRow(int plane, int row) const {

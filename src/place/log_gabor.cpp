@@ -4,6 +4,7 @@
 #include <kiss_fft.h>
 #include <kiss_fftr.h>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/place/log_gabor.hpp>
 
@@ -17,11 +18,7 @@ void check(bool ok, const std::string& what) {
 
 void validate(int columns, const LogGaborConfig& config) {
   check(columns >= 4 && columns % 2 == 0, "row length must be even and at least 4");
-  check(config.scales >= 1 && config.scales <= 16, "scales must be in 1..16");
-  check(config.min_wavelength >= 2.0, "min_wavelength must be at least 2 columns");
-  check(config.multiplier > 1.0, "multiplier must be above 1");
-  check(config.sigma_on_f > 0.0 && config.sigma_on_f < 1.0, "sigma_on_f must be in (0, 1)");
-  check(config.mask_threshold >= 0.0, "mask_threshold must not be negative");
+  core::checkConfig(config, "LoG-Gabor config");
 }
 
 kiss_fft_cpx* asKiss(std::complex<float>* p) {

@@ -4,11 +4,16 @@
 #include <cmath>
 #include <string>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
 
 #include "key_tree.hpp"
 
 namespace dcl::place {
+
+void validate(const PlaceIndexConfig& config) {
+  core::checkConfig(config, "place index config");
+}
 
 PlaceIndex::PlaceIndex(std::shared_ptr<const Descriptor> descriptor, core::RobotId robot,
                        const PlaceIndexConfig& config)
@@ -17,6 +22,7 @@ PlaceIndex::PlaceIndex(std::shared_ptr<const Descriptor> descriptor, core::Robot
       config_(config),
       tree_(std::make_unique<detail::KeyTree>()) {
   if (!descriptor_) throw core::Error("PlaceIndex: no descriptor");
+  validate(config_);
 }
 
 PlaceIndex::~PlaceIndex() = default;

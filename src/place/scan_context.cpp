@@ -2,6 +2,7 @@
 #include <cmath>
 #include <string>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/place/scan_context.hpp>
 
@@ -20,10 +21,7 @@ std::size_t idx(int i) {
 }
 
 void validate(const ScanContextConfig& c) {
-  check(c.rings >= 1 && c.rings <= 1024, "rings must be in 1..1024");
-  check(c.sectors >= 4 && c.sectors <= 4096, "sectors must be in 4..4096");
-  check(c.max_range > 0.0, "max_range must be positive");
-  check(std::isfinite(c.sensor_height), "sensor_height must be finite");
+  core::checkConfig(c, "Scan Context config");
 }
 
 /// Bin of a point, or -1 when it is beyond max_range or not finite.

@@ -9,6 +9,7 @@
 
 #include <zstd.h>
 
+#include <dcl/core/config.hpp>
 #include <dcl/registration/cloud_codec.hpp>
 #include <dcl/registration/voxel_filter.hpp>
 
@@ -205,17 +206,13 @@ std::pair<float, std::uint32_t> readHeader(std::span<const std::uint8_t> bytes) 
 
 }  // namespace
 
+void validate(const CloudCodecConfig& config) {
+  core::checkConfig(config, "verification cloud config");
+}
+
 std::vector<std::uint8_t> encodeVerificationCloud(const core::PointCloud& cloud,
                                                   const CloudCodecConfig& config) {
-  require(config.voxel_size >= 0.0 && std::isfinite(config.voxel_size),
-          "voxel_size must be 0 or positive");
-  require(config.resolution >= kCloudCodecMinResolution &&
-              config.resolution <= kCloudCodecMaxResolution,
-          "resolution must be in [" + std::to_string(kCloudCodecMinResolution) + ", " +
-              std::to_string(kCloudCodecMaxResolution) + "] m");
-  require(config.max_range >= 0.0, "max_range must be 0 or positive");
-  require(config.zstd_level >= 1 && config.zstd_level <= ZSTD_maxCLevel(),
-          "zstd_level must be in 1.." + std::to_string(ZSTD_maxCLevel()));
+  validate(config);
   const std::vector<Eigen::Vector3d> points = selectPoints(cloud, config);
   require(points.size() <= kCloudCodecMaxPoints,
           std::to_string(points.size()) + " points are more than a message may carry");

@@ -4,6 +4,7 @@
 #include <string>
 #include <utility>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/registration/gicp.hpp>
 #include <dcl/registration/verification.hpp>
@@ -75,10 +76,6 @@ Eigen::Isometry3d yawPose(double yaw) {
   return T;
 }
 
-void require(bool ok, const std::string& what) {
-  if (!ok) throw core::Error("loop verification config: " + what);
-}
-
 }  // namespace
 
 std::string_view toString(RejectReason reason) {
@@ -116,28 +113,7 @@ std::size_t VerificationStats::count(RejectReason reason) const {
 }
 
 void validate(const VerificationConfig& config) {
-  auto positive = [](double x) { return x > 0.0 && std::isfinite(x); };
-  require(positive(config.voxel_size), "voxel_size must be positive");
-  require(positive(config.feature_voxel_size), "feature_voxel_size must be positive");
-  require(positive(config.coarse_correspondence_distance),
-          "coarse_correspondence_distance must be positive");
-  require(positive(config.max_correspondence_distance),
-          "max_correspondence_distance must be positive");
-  require(config.shape_neighbors >= 3, "shape_neighbors must be at least 3");
-  require(config.max_iterations > 0, "max_iterations must be positive");
-  require(config.min_inlier_share >= 0.0 && config.min_inlier_share <= 1.0,
-          "min_inlier_share must be in [0, 1]");
-  require(positive(config.inlier_distance), "inlier_distance must be positive");
-  require(positive(config.max_fitness), "max_fitness must be positive");
-  require(config.min_degeneracy >= 0.0 && config.min_degeneracy < 1.0,
-          "min_degeneracy must be in [0, 1)");
-  require(config.submap_keyframes >= 0, "submap_keyframes must not be negative");
-  require(config.symmetric_share >= 0.0 && config.symmetric_share <= 1.0,
-          "symmetric_share must be in [0, 1]");
-  require(positive(config.fpfh.radius), "fpfh.radius must be positive");
-  require(positive(config.ransac.inlier_distance), "ransac.inlier_distance must be positive");
-  require(config.ransac.edge_similarity > 0.0 && config.ransac.edge_similarity <= 1.0,
-          "ransac.edge_similarity must be in (0, 1]");
+  core::checkConfig(config, "verification config");
 }
 
 VerificationResult verifyLoop(const core::PointCloud& query_cloud, double yaw_guess,

@@ -10,6 +10,7 @@
 #include <dcl/backend/centralized_solver.hpp>
 #include <dcl/backend/loop_check.hpp>
 #include <dcl/backend/pcm_trajectory.hpp>
+#include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/place/descriptor_codec.hpp>
 #include <dcl/place/lidar_iris.hpp>
@@ -70,11 +71,16 @@ void validate(const RobotConfig& config) {
   if (config.descriptor.kind != "iris")
     throw core::Error("robot config: descriptor.kind '" + config.descriptor.kind +
                       "': robots exchange LiDAR-Iris descriptors only (the wire codec's)");
-  place::validate(config.descriptor.iris);
-  registration::validate(config.verification);
-  comm::validate(config.messenger);
-  backend::validate(config.dgs);
-  backend::validate(config.refine);
+  core::checkConfig(config.odometry, "robot config: odometry");
+  core::checkConfig(config.mapper, "robot config: mapper");
+  core::checkConfig(config.descriptor, "robot config: descriptor");
+  core::checkConfig(config.index, "robot config: index");
+  core::checkConfig(config.verification, "robot config: verification");
+  core::checkConfig(config.pcm, "robot config: pcm");
+  core::checkConfig(config.loop_check, "robot config: loop_check");
+  core::checkConfig(config.messenger, "robot config: messenger");
+  core::checkConfig(config.dgs, "robot config: dgs");
+  core::checkConfig(config.refine, "robot config: refine");
   if (config.candidate_spacing < 1)
     throw core::Error("robot config: candidate_spacing must be at least 1");
   for (const auto& [name, value] :

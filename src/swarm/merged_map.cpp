@@ -2,6 +2,7 @@
 #include <limits>
 #include <string>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/registration/cloud_codec.hpp>
 #include <dcl/registration/voxel_filter.hpp>
@@ -10,8 +11,6 @@
 namespace dcl::swarm {
 namespace {
 
-constexpr double kMinVoxel = 0.05;
-constexpr double kMaxVoxel = 20.0;
 /// zstd level of the kept clouds: level 3 is within 2 % of level 15's size at
 /// a third less time (registration/cloud_codec.hpp), and a run keeps every keyframe.
 constexpr int kZstdLevel = 3;
@@ -113,10 +112,7 @@ class VoxelGrid {
 }  // namespace
 
 void validate(const MapConfig& config) {
-  const double v = config.voxel;
-  if (v != 0.0 && !(v >= kMinVoxel && v <= kMaxVoxel))
-    throw core::Error("map.voxel must be 0 (no map) or within [0.05, 20] m, not " +
-                      std::to_string(v));
+  core::checkConfig(config, "map config");
 }
 
 KeyframeClouds::KeyframeClouds(double voxel) : voxel_(voxel) {

@@ -252,6 +252,49 @@ class Config(unittest.TestCase):
         self.assertIn("affine", err)
         self.assertIn(path, err)
 
+    def test_bad_values_are_refused_naming_file_line_field_rule_and_value(self):
+        # (document, line, dotted key, rule and value as the message gives them)
+        cases = [
+            ("# a comment\nplace:\n  descriptor:\n    iris:\n      rows: 0\n", 5,
+             "place.descriptor.iris.rows", "must be in [1, 1024], found 0"),
+            ("place:\n  descriptor:\n    kind: sift\n", 3, "place.descriptor.kind",
+             'must be one of iris, scancontext, found "sift"'),
+            ("odometry:\n  min_range: 130\n  max_range: 120\n", 2, "odometry.min_range",
+             "must be less than max_range (120), found 130"),
+            ("odometry:\n  max_range: 1.5\n", 2, "odometry.min_range",
+             "found 2 (the default; max_range is set on line 2)"),
+            ("mapper:\n  solver:\n    threads: -4\n", 3, "mapper.solver.threads",
+             "must be in [1, 256], found -4"),
+            ("verification:\n  ransac:\n    confidence: 1.5\n", 3,
+             "verification.ransac.confidence", "must be in (0, 1), found 1.5"),
+            ("external:\n  T_body_sensor: [0, 0, 0, 0, 0, 0, 0]\n", 2, "external.T_body_sensor",
+             "unit quaternion"),
+        ]
+        for yaml_text, line, key, what in cases:
+            with self.subTest(key=key):
+                code, out, err, path = self.dump_with(yaml_text)
+                self.assertNotEqual(code, 0)
+                self.assertEqual(out, "")
+                lines = err.splitlines()
+                self.assertEqual(len(lines), 1, err)
+                self.assertTrue(
+                    lines[0].startswith(f"dcl-slam: error: {path}:{line}: field '{key}': "), err)
+                self.assertIn(what, lines[0])
+
+    def test_every_command_taking_a_config_refuses_it_before_it_starts(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "bad.yaml")
+            with open(path, "w") as f:
+                f.write("mapper:\n  solver:\n    loop_loss: squiggle\n")
+            for args in (["run", "--dataset", tmp, "--out", tmp], ["eval", "ate", "--gt", path,
+                         "--est", path], ["version"]):
+                with self.subTest(command=args[0]):
+                    code, _, err = run(*args, "--config", path, check=False)
+                    self.assertNotEqual(code, 0)
+                    self.assertTrue(err.startswith(
+                        f"dcl-slam: error: {path}:3: field 'mapper.solver.loop_loss': must be "
+                        'one of none, huber, cauchy, found "squiggle"'), err)
+
 
 class Demo(unittest.TestCase):
     """dcl-slam demo: no arguments but an output folder; simulates the demo

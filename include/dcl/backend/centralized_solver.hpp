@@ -11,11 +11,14 @@
 #include <string>
 
 #include <dcl/backend/pose_graph.hpp>
+#include <dcl/core/config.hpp>
 
 namespace dcl::backend {
 
 /// How the centralized solver runs.
 struct SolverConfig {
+  static constexpr int kMaxThreads = 256;  ///< threads at most (Ceres starts them all)
+
   int max_iterations = 100;  ///< Levenberg-Marquardt iterations at most
   int threads = 1;           ///< threads for Jacobian evaluation and the linear solver
   /// Robust loss on loop factors only (odometry is trusted): "none", "huber" or "cauchy".
@@ -33,18 +36,27 @@ struct SolverConfig {
   /// in a local minimum (torus3D); from the chordal start it reaches the optimum.
   std::string initialisation = "as_is";
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("max_iterations", max_iterations, "Levenberg-Marquardt iterations at most");
-    v.field("threads", threads, "threads for Jacobians and the linear solver");
-    v.field("loop_loss", loop_loss, "robust loss on loop factors: none, huber or cauchy");
-    v.field("loss_scale", loss_scale, "scale of the loss, whitened units (sqrt chi-square)");
+    v.field("max_iterations", max_iterations, "Levenberg-Marquardt iterations at most")
+        .nonNegative();
+    v.field("threads", threads, "threads for Jacobians and the linear solver")
+        .within(1, kMaxThreads);
+    v.field("loop_loss", loop_loss, "robust loss on loop factors: none, huber or cauchy")
+        .oneOf({"none", "huber", "cauchy"});
+    v.field("loss_scale", loss_scale, "scale of the loss, whitened units (sqrt chi-square)")
+        .positive();
     v.field("fix_lowest", fix_lowest, "fix the lowest node when the graph fixes none");
-    v.field("function_tolerance", function_tolerance, "stop below this relative cost change");
-    v.field("initialisation", initialisation, "where LM starts: as_is or chordal");
+    v.field("function_tolerance", function_tolerance, "stop below this relative cost change")
+        .nonNegative();
+    v.field("initialisation", initialisation, "where LM starts: as_is or chordal")
+        .oneOf({"as_is", "chordal"});
   }
 };
+
+/// Throws core::Error naming the first field that breaks its rule (visit()).
+void validate(const SolverConfig& config);
 
 /// What a solve did. Costs are g2o's chi-square, sum of r^T Omega r over the
 /// factors that connect two nodes, without the robust loss, so that they
@@ -64,9 +76,9 @@ struct SolverSummary {
 
 /// Optimises every node estimate of `graph` in place. Fixed nodes keep their
 /// estimates; with `config.fix_lowest` and no fixed node, the lowest key is
-/// fixed (the graph itself is not marked). Throws core::Error for an unknown
-/// loss or initialisation name, or when the chordal initialisation fails (a
-/// graph in pieces).
+/// fixed (the graph itself is not marked). Throws core::Error for a config
+/// that breaks its rules (validate), or when the chordal initialisation fails
+/// (a graph in pieces).
 SolverSummary solveCentralized(PoseGraph& graph, const SolverConfig& config = {});
 
 }  // namespace dcl::backend

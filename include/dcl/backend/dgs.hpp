@@ -61,6 +61,7 @@
 #include <vector>
 
 #include <dcl/backend/pose_graph.hpp>
+#include <dcl/core/config.hpp>
 #include <dcl/core/ids.hpp>
 #include <dcl/core/se3.hpp>
 
@@ -73,19 +74,21 @@ struct DgsConfig {
   double pose_threshold = 0.1;      ///< stop stage 2 when no robot's estimate changes more
   int max_rotation_iterations = 1000;  ///< stage 1 cap (steps of each robot)
   int max_pose_iterations = 1000;      ///< stage 2 cap
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("gamma", gamma, "successive over-relaxation factor (1: Gauss-Seidel)");
-    v.field("rotation_threshold", rotation_threshold, "stage 1 estimate-change threshold");
-    v.field("pose_threshold", pose_threshold, "stage 2 estimate-change threshold");
-    v.field("max_rotation_iterations", max_rotation_iterations, "stage 1 iteration cap");
-    v.field("max_pose_iterations", max_pose_iterations, "stage 2 iteration cap");
+    // Over-relaxed Gauss-Seidel converges on these problems for gamma in (0, 2).
+    v.field("gamma", gamma, "successive over-relaxation factor (1: Gauss-Seidel)")
+        .within(0.0, 2.0, core::Interval::open);
+    v.field("rotation_threshold", rotation_threshold, "stage 1 estimate-change threshold")
+        .nonNegative();
+    v.field("pose_threshold", pose_threshold, "stage 2 estimate-change threshold").nonNegative();
+    v.field("max_rotation_iterations", max_rotation_iterations, "stage 1 iteration cap").positive();
+    v.field("max_pose_iterations", max_pose_iterations, "stage 2 iteration cap").positive();
   }
 };
 
-/// Throws core::Error naming the first field out of range (gamma must lie in
-/// (0, 2), where over-relaxed Gauss-Seidel converges on these problems).
+/// Throws core::Error naming the first field that breaks its rule (visit()).
 void validate(const DgsConfig& config);
 
 /// Where an agent is in a round.

@@ -58,12 +58,17 @@
 
 #include <dcl/backend/pose_graph.hpp>
 #include <dcl/backend/refine_coarse.hpp>
+#include <dcl/core/config.hpp>
 #include <dcl/core/ids.hpp>
 
 namespace dcl::backend {
 
 /// How the refinement runs.
 struct RefineConfig {
+  /// Coarse cells along a robot's longest side at most: (64 + 1)^3 nodes of six
+  /// unknowns is already more than a coarse level should hold.
+  static constexpr int kMaxCoarseCells = 64;
+
   /// Rounds at most (a round: every robot steps once and sends its separators).
   int max_rounds = 500;
   /// Stop when the graph's cost falls relatively less than this per round, on
@@ -119,31 +124,39 @@ struct RefineConfig {
   /// off by default.
   double separator_tolerance = 0.0;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("max_rounds", max_rounds, "rounds over all robots at most");
+    v.field("max_rounds", max_rounds, "rounds over all robots at most").nonNegative();
     v.field("relative_tolerance", relative_tolerance,
-            "stop below this relative cost decrease per round");
-    v.field("window", window, "rounds the tolerance is averaged over");
-    v.field("block_iterations", block_iterations, "Levenberg-Marquardt iterations per block step");
-    v.field("block_tolerance", block_tolerance, "relative function tolerance within a block step");
+            "stop below this relative cost decrease per round")
+        .nonNegative();
+    v.field("window", window, "rounds the tolerance is averaged over").positive();
+    v.field("block_iterations", block_iterations, "Levenberg-Marquardt iterations per block step")
+        .positive();
+    v.field("block_tolerance", block_tolerance, "relative function tolerance within a block step")
+        .nonNegative();
     v.field("factorisation_reuse", factorisation_reuse,
-            "steps a block's factorisation may serve after its first");
+            "steps a block's factorisation may serve after its first")
+        .nonNegative();
     v.field("accelerate", accelerate, "Nesterov momentum with adaptive restart");
     v.field("coarse_cells", coarse_cells,
-            "cells of a robot's coarse grid along its longest side (0: no coarse correction)");
+            "cells of a robot's coarse grid along its longest side (0: no coarse correction)")
+        .within(0, kMaxCoarseCells);
     v.field("coarse_refresh", coarse_refresh,
-            "send the coarse blocks again when they changed by this fraction");
+            "send the coarse blocks again when they changed by this fraction")
+        .within(0.0, 1.0, core::Interval::open_high);
     v.field("coarse_trust", coarse_trust,
-            "send fresh coarse blocks when the step fell short of this fraction of its prediction");
+            "send fresh coarse blocks when the step fell short of this fraction of its prediction")
+        .within(0.0, 1.0, core::Interval::open_high);
     v.field(
-        "separator_tolerance", separator_tolerance,
-        "send a separator whose factors' residuals moved by this fraction of the block's (0: all)");
+         "separator_tolerance", separator_tolerance,
+         "send a separator whose factors' residuals moved by this fraction of the block's (0: all)")
+        .nonNegative();
   }
 };
 
-/// Throws core::Error naming the first field out of range.
+/// Throws core::Error naming the first field that breaks its rule (visit()).
 void validate(const RefineConfig& config);
 
 /// What one robot's step did and what it sends.

@@ -55,17 +55,19 @@ struct LoopCheckConfig {
   /// loops, most on the pair with the least support.
   double odometry_stiffness = 100.0;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
     v.field("enabled", enabled,
             "withdraw inter-robot loops the group's joint solution cannot "
             "explain (the second line of defence after PCM)");
     v.field("threshold", threshold,
-            "squared Mahalanobis distance of a loop's residual beyond which it is unexplained");
+            "squared Mahalanobis distance of a loop's residual beyond which it is unexplained")
+        .positive();
     v.field("odometry_stiffness", odometry_stiffness,
             "times the robots' own factors are held stiffer than their covariances while the "
-            "check solves (the offline check)");
+            "check solves (the offline check)")
+        .positive();
   }
 };
 

@@ -67,12 +67,12 @@ struct PcmConfig {
   /// merge their maps on a few agreeing loops there. 1: the paper's PCM.
   std::size_t min_loops = 2;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field(
-        "threshold", threshold,
-        "largest squared Mahalanobis distance of a consistent loop pair (chi-square(6) median)");
+    v.field("threshold", threshold,
+            "largest squared Mahalanobis distance of a consistent loop pair (chi-square(6) median)")
+        .positive();
     v.field("max_exact_loops", max_exact_loops,
             "loops of one robot pair beyond which the clique is heuristic");
     v.field("max_branch_nodes", max_branch_nodes,
@@ -81,7 +81,8 @@ struct PcmConfig {
             "compose relative poses through intra-robot loops (false: odometry chain only)");
     v.field("min_loops", min_loops,
             "fewest mutually consistent loops of a robot pair before they are kept (1: none held "
-            "back)");
+            "back)")
+        .positive();
   }
 };
 

@@ -16,12 +16,14 @@
 /// overrides it with a one-interface configuration (e.g. "lo" for robots on
 /// one machine).
 
+#include <algorithm>
 #include <chrono>
 #include <cstdint>
 #include <memory>
 #include <optional>
 #include <span>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <dcl/comm/transport.hpp>
@@ -29,7 +31,20 @@
 
 namespace dcl::comm {
 
+/// Whether `text` holds only ASCII letters, digits and the characters of `extra`.
+inline bool isPlainName(std::string_view text, std::string_view extra) {
+  return std::all_of(text.begin(), text.end(), [&](char c) {
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+           extra.find(c) != std::string_view::npos;
+  });
+}
+
 struct DdsConfig {
+  static constexpr std::uint32_t kMaxDomain = 232;     ///< DDSI ports: 7400 + 250 * domain < 65536
+  static constexpr std::uint32_t kMaxHistory = 65536;  ///< samples kept at most
+  static constexpr std::size_t kMaxSwarmChars = 64;    ///< swarm name length at most
+  static constexpr std::size_t kMaxInterfaceChars = 15;  ///< IFNAMSIZ - 1 on Linux
+
   /// DDS domain id (0..232).
   std::uint32_t domain = 0;
   /// Swarm name: the DDS partition. Robots of other swarms are never heard.
@@ -40,17 +55,23 @@ struct DdsConfig {
   /// Samples kept per reader and writer (KEEP_LAST depth).
   std::uint32_t history = 256;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("domain", domain, "DDS domain id (0..232)");
-    v.field("swarm", swarm, "swarm name: the DDS partition");
-    v.field("interface", interface, "network interface with multicast discovery (empty: default)");
-    v.field("history", history, "samples kept per reader and writer");
+    v.field("domain", domain, "DDS domain id (0..232)").atMost(kMaxDomain);
+    // Partition names match with wildcards ('*', '?'): a swarm named "*" would hear every swarm.
+    v.field("swarm", swarm, "swarm name: the DDS partition")
+        .rule(!swarm.empty() && swarm.size() <= kMaxSwarmChars && isPlainName(swarm, "_-.:/"),
+              "must be 1..64 letters, digits or '_', '-', '.', ':', '/'");
+    v.field("interface", interface, "network interface with multicast discovery (empty: default)")
+        .rule(interface.size() <= kMaxInterfaceChars && isPlainName(interface, "_-.:"),
+              "must be empty or a network interface name (up to 15 letters, digits or '_', '-', "
+              "'.', ':')");
+    v.field("history", history, "samples kept per reader and writer").within(1, kMaxHistory);
   }
 };
 
-/// Throws core::Error naming the first field out of range.
+/// Throws core::Error naming the first field that breaks its rule (visit()).
 void validate(const DdsConfig& config);
 
 class DdsTransport final : public Transport {

@@ -63,17 +63,19 @@ struct MessengerConfig {
   /// contiguously; bounds its memory of out-of-order arrivals.
   std::uint64_t window = 4096;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("heartbeat_period", heartbeat_period, "s between heartbeats");
-    v.field("neighbour_timeout", neighbour_timeout, "s of silence after which a neighbour is gone");
-    v.field("retransmit_after", retransmit_after, "s before an unacknowledged message is re-sent");
-    v.field("window", window, "sequence numbers accepted ahead of the contiguous ones");
+    v.field("heartbeat_period", heartbeat_period, "s between heartbeats").positive();
+    v.field("neighbour_timeout", neighbour_timeout, "s of silence after which a neighbour is gone")
+        .greaterThan(heartbeat_period, "heartbeat_period");
+    v.field("retransmit_after", retransmit_after, "s before an unacknowledged message is re-sent")
+        .positive();
+    v.field("window", window, "sequence numbers accepted ahead of the contiguous ones").positive();
   }
 };
 
-/// Throws core::Error naming the first field out of range.
+/// Throws core::Error naming the first field that breaks its rule (visit()).
 void validate(const MessengerConfig& config);
 
 /// A change among the neighbours.

@@ -26,11 +26,14 @@
 #include <vector>
 
 #include <dcl/comm/transport.hpp>
+#include <dcl/core/config.hpp>
 #include <dcl/core/ids.hpp>
 
 namespace dcl::comm {
 
 struct SimRadioConfig {
+  static constexpr double kMinMeterInterval = 0.01;  ///< s, the finest traffic bins
+
   /// m, robots closer than this are linked (0: always linked). The paper's
   /// experiments assume robots talk once near each other; ~50 m is a
   /// typical ad-hoc WiFi range among buildings.
@@ -46,19 +49,22 @@ struct SimRadioConfig {
   /// s, width of the traffic-over-time bins.
   double meter_interval = 1.0;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("range", range, "m, robots closer than this are linked (0: always)");
-    v.field("bandwidth", bandwidth, "bytes/s per directed link (0: unlimited)");
-    v.field("latency", latency, "s, added to every delivery");
-    v.field("drop_rate", drop_rate, "share of messages lost per receiver, [0, 1)");
+    v.field("range", range, "m, robots closer than this are linked (0: always)").nonNegative();
+    v.field("bandwidth", bandwidth, "bytes/s per directed link (0: unlimited)").nonNegative();
+    v.field("latency", latency, "s, added to every delivery").nonNegative();
+    v.field("drop_rate", drop_rate, "share of messages lost per receiver, [0, 1)")
+        .within(0.0, 1.0, core::Interval::open_high);
     v.field("seed", seed, "seed of the loss generator");
-    v.field("meter_interval", meter_interval, "s, width of the traffic-over-time bins");
+    // A bin per interval of the run and robot: finer would hold more bins than the run has events.
+    v.field("meter_interval", meter_interval, "s, width of the traffic-over-time bins")
+        .atLeast(kMinMeterInterval);
   }
 };
 
-/// Throws core::Error naming the first field out of range.
+/// Throws core::Error naming the first field that breaks its rule (visit()).
 void validate(const SimRadioConfig& config);
 
 /// A scripted link: robots a and b can talk during [start, end).

@@ -16,6 +16,7 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <cmath>
 #include <optional>
 #include <string>
 
@@ -26,6 +27,9 @@ namespace dcl::odometry {
 
 /// Where the external poses come from and how they are used.
 struct ExternalOdometryConfig {
+  /// How far the norm of T_body_sensor's quaternion may be from 1 (values written to a few digits).
+  static constexpr double kQuaternionTolerance = 1e-2;
+
   std::string file = "";        ///< pose file or bag; default none (a trajectory is given in code)
   std::string format = "auto";  ///< "tum", "kitti", "bag" or "auto" (by extension: .bag, else tum)
   std::string times = "";       ///< kitti: the times file (one stamp a line); default none
@@ -40,19 +44,34 @@ struct ExternalOdometryConfig {
   /// rad per sqrt(m): rotation standard deviation of the reported motion covariance.
   double rotation_sigma = 1e-3;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
     v.field("file", file, "pose file or ROS1 bag of the external front-end");
-    v.field("format", format, "tum, kitti, bag or auto (by extension)");
+    v.field("format", format, "tum, kitti, bag or auto (by extension)")
+        .oneOf({"tum", "kitti", "bag", "auto"});
     v.field("times", times, "kitti: times file");
-    v.field("topic", topic, "bag: nav_msgs/Odometry or geometry_msgs/PoseStamped topic");
+    v.field("topic", topic, "bag: nav_msgs/Odometry or geometry_msgs/PoseStamped topic")
+        .rule(file.empty() || !readsBag() || !topic.empty(), "must be given to read a bag", "file");
     v.field("T_body_sensor", T_body_sensor,
-            "LiDAR pose in the source's body frame, x y z qx qy qz qw");
-    v.field("translation_sigma", translation_sigma, "m per sqrt(m) of travel, motion covariance");
-    v.field("rotation_sigma", rotation_sigma, "rad per sqrt(m) of travel, motion covariance");
+            "LiDAR pose in the source's body frame, x y z qx qy qz qw")
+        .rule(T_body_sensor.allFinite() &&
+                  std::abs(T_body_sensor.tail<4>().norm() - 1.0) <= kQuaternionTolerance,
+              "must be finite, with a unit quaternion (norm 1 within 0.01)");
+    v.field("translation_sigma", translation_sigma, "m per sqrt(m) of travel, motion covariance")
+        .positive();
+    v.field("rotation_sigma", rotation_sigma, "rad per sqrt(m) of travel, motion covariance")
+        .positive();
+  }
+
+  /// Whether `file` is read as a bag: format bag, or auto and a .bag file.
+  [[nodiscard]] bool readsBag() const {
+    return format == "bag" || (format == "auto" && file.ends_with(".bag"));
   }
 };
+
+/// Throws core::Error naming the first field that breaks its rule (visit()).
+void validate(const ExternalOdometryConfig& config);
 
 /// Reads the trajectory `config` names (TUM or KITTI file via the io readers, or a
 /// bag topic). Throws core::FileError naming the file when it cannot be read, and

@@ -7,8 +7,10 @@
 /// pose and its covariance, composed from the per-frame covariances.
 
 #include <cstddef>
+#include <numbers>
 #include <optional>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/keyframe.hpp>
 #include <dcl/core/point_cloud.hpp>
 #include <dcl/odometry/odometry.hpp>
@@ -17,6 +19,9 @@ namespace dcl::odometry {
 
 /// When a frame becomes a keyframe and how its scan is stored.
 struct KeyframeConfig {
+  static constexpr double kMaxTranslation = 1000.0;         ///< m, translation at most
+  static constexpr double kMaxRotation = std::numbers::pi;  ///< rad, rotation at most
+
   double translation = 1.0;  ///< m, moved farther than this since the last keyframe (paper: 1.0)
   double rotation = 0.2;     ///< rad, turned more than this since the last keyframe (paper: 0.2)
   /// m, voxel edge of the stored scan. 0.5 m keeps an HDL-64 keyframe at about
@@ -28,13 +33,17 @@ struct KeyframeConfig {
   /// over-confident front-end cannot make a factor infinitely stiff.
   double min_variance = 1e-8;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("translation", translation, "m, keyframe after moving this far (paper: 1.0)");
-    v.field("rotation", rotation, "rad, keyframe after turning this much (paper: 0.2)");
-    v.field("voxel_size", voxel_size, "m, voxel edge of the stored keyframe scan");
-    v.field("min_variance", min_variance, "floor of the odometry factor's variances");
+    // No turn is larger than pi, and a keyframe every kilometre leaves no map.
+    v.field("translation", translation, "m, keyframe after moving this far (paper: 1.0)")
+        .within(0.0, kMaxTranslation);
+    v.field("rotation", rotation, "rad, keyframe after turning this much (paper: 0.2)")
+        .within(0.0, kMaxRotation);
+    v.field("voxel_size", voxel_size, "m, voxel edge of the stored keyframe scan")
+        .within(core::kMinVoxelEdge, core::kMaxVoxelEdge);
+    v.field("min_variance", min_variance, "floor of the odometry factor's variances").positive();
   }
 };
 

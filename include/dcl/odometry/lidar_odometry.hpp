@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/point_cloud.hpp>
 #include <dcl/core/se3.hpp>
 #include <dcl/odometry/odometry.hpp>
@@ -21,6 +22,10 @@ namespace dcl::odometry {
 
 /// Everything the LiDAR odometry can be told.
 struct OdometryConfig {
+  static constexpr int kMaxPointsPerVoxel = 1000;  ///< a voxel's budget at most
+  /// min_points at most: more than any LiDAR's scan, so that no setting skips every scan.
+  static constexpr std::size_t kMaxMinPoints = 10'000'000;
+
   double max_range = 100.0;       ///< m, farther points are dropped; also the map's radius
   double min_range = 2.0;         ///< m, nearer points (the ego vehicle) are dropped
   double voxel_size = 0.0;        ///< m, map voxel edge; 0 = max_range / 100 (KISS-ICP's rule)
@@ -59,32 +64,50 @@ struct OdometryConfig {
     return voxel_size > 0.0 ? voxel_size : max_range / 100.0;
   }
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("max_range", max_range, "m, farther points are dropped; also the map's radius");
-    v.field("min_range", min_range, "m, nearer points (the ego vehicle) are dropped");
-    v.field("voxel_size", voxel_size, "m, map voxel edge; 0 = max_range / 100");
-    v.field("max_points_per_voxel", max_points_per_voxel, "map points a voxel keeps");
+    // max_range / 100 is the map voxel when voxel_size is 0: it stays a voxel edge.
+    v.field("max_range", max_range, "m, farther points are dropped; also the map's radius")
+        .within(100.0 * core::kMinVoxelEdge, 100.0 * core::kMaxVoxelEdge);
+    v.field("min_range", min_range, "m, nearer points (the ego vehicle) are dropped")
+        .nonNegative()
+        .lessThan(max_range, "max_range");
+    v.field("voxel_size", voxel_size, "m, map voxel edge; 0 = max_range / 100")
+        .zeroOrWithin(core::kMinVoxelEdge, core::kMaxVoxelEdge, "max_range / 100");
+    v.field("max_points_per_voxel", max_points_per_voxel, "map points a voxel keeps")
+        .within(1, kMaxPointsPerVoxel);
     v.field("deskew", deskew, "undo the motion during the sweep when points carry times");
     v.field("motion_change_error", motion_change_error,
             "m, estimate a sweep's own twist when the registered motion moves a point 10 m out at "
-            "the sweep's ends by more than this (0: never)");
+            "the sweep's ends by more than this (0: never)")
+        .nonNegative();
     v.field("motion_change_rmse_ratio", motion_change_rmse_ratio,
-            "likewise when the sweep's RMS residual exceeds this many times the recent frames'");
+            "likewise when the sweep's RMS residual exceeds this many times the recent frames' "
+            "(0: never)")
+        .nonNegative();
     v.field("twist_sigma_linear", twist_sigma_linear,
-            "m/s, how far such a sweep's own velocity may stray from the last sweep's (1 sigma)");
+            "m/s, how far such a sweep's own velocity may stray from the last sweep's (1 sigma)")
+        .positive();
     v.field("twist_sigma_angular", twist_sigma_angular,
-            "rad/s, how far such a sweep's own angular velocity may stray from the last sweep's");
-    v.field("min_points", min_points, "a scan with fewer usable points is skipped");
-    v.field("min_translation_sigma", min_translation_sigma, "m, covariance floor");
-    v.field("min_rotation_sigma", min_rotation_sigma, "rad, covariance floor about x and y");
-    v.field("min_yaw_sigma", min_yaw_sigma, "rad, covariance floor about the spin axis z");
-    v.field("max_sigma", max_sigma, "m or rad, covariance ceiling in unobservable directions");
+            "rad/s, how far such a sweep's own angular velocity may stray from the last sweep's")
+        .positive();
+    v.field("min_points", min_points, "a scan with fewer usable points is skipped")
+        .atMost(kMaxMinPoints);
+    v.field("min_translation_sigma", min_translation_sigma, "m, covariance floor").nonNegative();
+    v.field("min_rotation_sigma", min_rotation_sigma, "rad, covariance floor about x and y")
+        .nonNegative();
+    v.field("min_yaw_sigma", min_yaw_sigma, "rad, covariance floor about the spin axis z")
+        .nonNegative();
+    v.field("max_sigma", max_sigma, "m or rad, covariance ceiling in unobservable directions")
+        .positive();
     v.section("threshold", threshold, "adaptive correspondence threshold");
     v.section("icp", icp, "registration");
   }
 };
+
+/// Throws core::Error naming the first field that breaks its rule (visit()).
+void validate(const OdometryConfig& config);
 
 /// KISS-ICP-style LiDAR odometry. Not thread-safe; registration itself runs on
 /// TBB's threads (limit them with tbb::global_control).

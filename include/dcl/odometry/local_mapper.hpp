@@ -26,7 +26,7 @@ struct LocalMapperConfig {
   LoopClosureConfig loops{};       ///< loop search and verification
   backend::SolverConfig solver{};  ///< smoothing of the local graph
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
     v.section("keyframes", keyframes, "keyframe selection");
@@ -35,6 +35,9 @@ struct LocalMapperConfig {
     v.section("solver", solver, "local pose graph smoothing");
   }
 };
+
+/// Throws core::Error naming the first field that breaks its rule (visit()).
+void validate(const LocalMapperConfig& config);
 
 /// What one frame produced.
 struct MapperUpdate {
@@ -49,7 +52,7 @@ struct MapperUpdate {
 /// frame: keyframe 0 is fixed at its odometry pose.
 class LocalMapper {
  public:
-  /// A mapper for robot `robot`.
+  /// A mapper for robot `robot`; throws core::Error for a config that breaks its rules.
   explicit LocalMapper(core::RobotId robot, const LocalMapperConfig& config = {});
 
   /// Takes the next frame and its cloud in the sensor frame at the frame's stamp

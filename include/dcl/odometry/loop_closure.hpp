@@ -11,6 +11,8 @@
 /// current position estimates stands in until the LiDAR-Iris place index lands.
 
 #include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <memory>
 #include <optional>
@@ -18,6 +20,7 @@
 #include <string>
 #include <vector>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/keyframe.hpp>
 #include <dcl/core/se3.hpp>
 #include <dcl/odometry/registration.hpp>
@@ -51,11 +54,12 @@ struct RadiusSearchConfig {
   double radius = 10.0;            ///< m, candidates lie this close to the query's estimate
   std::size_t max_candidates = 3;  ///< the nearest few are verified, nearest first
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("radius", radius, "m, candidates lie this close to the query's position estimate");
-    v.field("max_candidates", max_candidates, "the nearest few candidates are verified");
+    v.field("radius", radius, "m, candidates lie this close to the query's position estimate")
+        .positive();
+    v.field("max_candidates", max_candidates, "the nearest few candidates are verified").positive();
   }
 };
 
@@ -80,6 +84,8 @@ class RadiusCandidateSearch final : public LoopCandidateSearch {
 
 /// How candidates are excluded and verified.
 struct LoopClosureConfig {
+  static constexpr int kMaxPointsPerVoxel = 1000;  ///< a submap voxel's budget at most
+
   RadiusSearchConfig search{};  ///< the default candidate search
   /// Keyframes this recent are never candidates (with 1 m keyframes, the last 50 m).
   std::size_t exclude_recent = 50;
@@ -103,22 +109,33 @@ struct LoopClosureConfig {
   /// the number of points and would make a loop stiffer than any odometry factor.
   double min_variance = 1e-4;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
     v.section("search", search, "the radius search on position estimates");
     v.field("exclude_recent", exclude_recent, "the most recent keyframes are never candidates");
-    v.field("exclude_seconds", exclude_seconds, "s, nor keyframes younger than this");
+    v.field("exclude_seconds", exclude_seconds, "s, nor keyframes younger than this").nonNegative();
     v.field("skip_after_loop", skip_after_loop, "keyframes not searched after an accepted loop");
-    v.field("submap_neighbors", submap_neighbors, "submap: candidate +/- this many keyframes");
-    v.field("map_voxel_size", map_voxel_size, "m, submap voxel edge");
-    v.field("max_points_per_voxel", max_points_per_voxel, "points a submap voxel keeps");
-    v.field("source_voxel_size", source_voxel_size, "m, query cloud thinning for ICP");
-    v.field("icp_distances", icp_distances, "m, ICP correspondence distances, coarse to fine");
-    v.field("icp_iterations", icp_iterations, "Gauss-Newton iterations at most per stage");
-    v.field("min_inlier_share", min_inlier_share, "fewest share of query points that fit");
-    v.field("max_rmse", max_rmse, "m, largest RMS residual of the fitting points");
-    v.field("min_variance", min_variance, "floor of the loop covariance's variances");
+    v.field("submap_neighbors", submap_neighbors, "submap: candidate +/- this many keyframes")
+        .nonNegative();
+    v.field("map_voxel_size", map_voxel_size, "m, submap voxel edge")
+        .within(core::kMinVoxelEdge, core::kMaxVoxelEdge);
+    v.field("max_points_per_voxel", max_points_per_voxel, "points a submap voxel keeps")
+        .within(1, kMaxPointsPerVoxel);
+    v.field("source_voxel_size", source_voxel_size, "m, query cloud thinning for ICP")
+        .within(core::kMinVoxelEdge, core::kMaxVoxelEdge);
+    // The last stage's distance measures the fit: without one there is no loop.
+    v.field("icp_distances", icp_distances, "m, ICP correspondence distances, coarse to fine")
+        .rule(!icp_distances.empty() &&
+                  std::ranges::all_of(icp_distances,
+                                      [](double d) { return d > 0.0 && std::isfinite(d); }),
+              "must hold at least one distance, each positive and finite");
+    v.field("icp_iterations", icp_iterations, "Gauss-Newton iterations at most per stage")
+        .positive();
+    v.field("min_inlier_share", min_inlier_share, "fewest share of query points that fit")
+        .within(0.0, 1.0);
+    v.field("max_rmse", max_rmse, "m, largest RMS residual of the fitting points").positive();
+    v.field("min_variance", min_variance, "floor of the loop covariance's variances").positive();
   }
 };
 

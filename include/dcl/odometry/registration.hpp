@@ -12,6 +12,7 @@
 #include <span>
 #include <vector>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/se3.hpp>
 #include <dcl/odometry/voxel_map.hpp>
 
@@ -19,6 +20,8 @@ namespace dcl::odometry {
 
 /// How ICP runs.
 struct IcpConfig {
+  static constexpr int kMaxNormalNeighbors = 16;  ///< map points of a normal at most
+
   int max_iterations = 100;                ///< Gauss-Newton iterations at most
   double convergence_criterion = 1e-4;     ///< stop when the update's norm (m and rad) falls below
   double max_correspondence_distance = 3;  ///< m, pairs farther apart are not correspondences
@@ -34,23 +37,32 @@ struct IcpConfig {
   /// this fraction of its strongest (rotations scaled by the scan's RMS range).
   double degeneracy_threshold = 1e-3;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("max_iterations", max_iterations, "Gauss-Newton iterations at most");
-    v.field("convergence_criterion", convergence_criterion, "stop below this update norm");
+    v.field("max_iterations", max_iterations, "Gauss-Newton iterations at most").positive();
+    v.field("convergence_criterion", convergence_criterion, "stop below this update norm")
+        .positive();
     v.field("max_correspondence_distance", max_correspondence_distance,
-            "m, farthest correspondence (the odometry sets it adaptively)");
-    v.field("kernel_scale", kernel_scale, "m, Geman-McClure scale (the odometry sets it)");
+            "m, farthest correspondence (the odometry sets it adaptively)")
+        .positive();
+    v.field("kernel_scale", kernel_scale, "m, Geman-McClure scale (the odometry sets it)")
+        .positive();
     v.field("point_to_plane", point_to_plane, "point-to-plane residuals (false: point-to-point)");
-    v.field("normal_neighbors", normal_neighbors, "map points fitted for a local normal");
-    v.field("max_planarity", max_planarity, "smallest/middle eigenvalue for a usable normal");
-    v.field("min_spread", min_spread, "middle/largest eigenvalue for a usable normal (no lines)");
-    v.field("min_inliers", min_inliers, "fewest correspondences for convergence");
+    // A plane needs three points; the search keeps no more than kMaxNormalNeighbors.
+    v.field("normal_neighbors", normal_neighbors, "map points fitted for a local normal")
+        .within(3, kMaxNormalNeighbors);
+    v.field("max_planarity", max_planarity, "smallest/middle eigenvalue for a usable normal")
+        .within(0.0, 1.0);
+    v.field("min_spread", min_spread, "middle/largest eigenvalue for a usable normal (no lines)")
+        .within(0.0, 1.0);
+    v.field("min_inliers", min_inliers, "fewest correspondences for convergence").positive();
     v.field("reassociation_distance", reassociation_distance,
-            "m, a point keeps its correspondence until it moves this far");
+            "m, a point keeps its correspondence until it moves this far")
+        .nonNegative();
     v.field("degeneracy_threshold", degeneracy_threshold,
-            "weakest/strongest scaled eigenvalue below which a fit is degenerate");
+            "weakest/strongest scaled eigenvalue below which a fit is degenerate")
+        .within(0.0, 1.0, core::Interval::open_high);
   }
 };
 
@@ -117,12 +129,16 @@ struct AdaptiveThresholdConfig {
   double min_motion = 0.1;         ///< m, frames moving less do not update the estimate
   double min_threshold = 0.05;     ///< m, the estimate never drops below (sensor noise floor)
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("initial_threshold", initial_threshold, "m, sigma before any motion was seen");
-    v.field("min_motion", min_motion, "m, frames moving less do not update the estimate");
-    v.field("min_threshold", min_threshold, "m, lower bound of sigma");
+    v.field("initial_threshold", initial_threshold, "m, sigma before any motion was seen")
+        .positive();
+    v.field("min_motion", min_motion, "m, frames moving less do not update the estimate")
+        .nonNegative();
+    v.field("min_threshold", min_threshold, "m, lower bound of sigma")
+        .positive()
+        .atMost(initial_threshold, "initial_threshold");
   }
 };
 

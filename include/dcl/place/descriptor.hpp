@@ -19,10 +19,20 @@
 #include <string>
 #include <string_view>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/point_cloud.hpp>
 #include <dcl/place/log_gabor.hpp>
 
 namespace dcl::place {
+
+/// Which algorithm made a descriptor.
+enum class DescriptorKind { kLidarIris, kScanContext };
+
+/// "iris" or "scancontext".
+std::string_view toString(DescriptorKind kind);
+
+/// Parses "iris" / "lidar-iris" / "scancontext" / "scan-context"; nullopt otherwise.
+std::optional<DescriptorKind> parseDescriptorKind(std::string_view name);
 
 /// Which height slab sets which bit of a LiDAR-Iris bin: bit
 /// clamp(ceil((z - lowest) / slab), 0, 7) for a point at height z (m, sensor
@@ -31,11 +41,11 @@ struct HeightEncoding {
   double lowest = -5.0;  ///< m, z at the top of slab 0 (HDL-64: 5 m below the sensor)
   double slab = 1.0;     ///< m, slab height (HDL-64: 1 m)
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("lowest", lowest, "m, top of the lowest height slab, sensor frame");
-    v.field("slab", slab, "m, height of each of the 8 slabs");
+    v.field("lowest", lowest, "m, top of the lowest height slab, sensor frame").finite();
+    v.field("slab", slab, "m, height of each of the 8 slabs").positive();
   }
 };
 
@@ -51,6 +61,9 @@ HeightEncoding heightEncodingFor(std::string_view sensor);
 
 /// LiDAR-Iris parameters (paper §III-B; DESIGN.md §6).
 struct IrisConfig {
+  static constexpr int kMaxRows = 1024;     ///< radial bins at most
+  static constexpr int kMaxColumns = 4096;  ///< angular bins at most
+
   int rows = 80;          ///< radial bins (paper: 80)
   int columns = 360;      ///< angular bins (paper: 360, 1 degree each)
   double max_range = 80;  ///< m, radial extent; rows are max_range / rows wide (paper: 80 m)
@@ -73,40 +86,52 @@ struct IrisConfig {
   /// The effective height encoding (custom or the sensor's).
   [[nodiscard]] HeightEncoding heightEncoding() const;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("rows", rows, "radial bins (paper: 80)");
-    v.field("columns", columns, "angular bins (paper: 360)");
-    v.field("max_range", max_range, "m, radial extent of the image (paper: 80)");
-    v.field("sensor", sensor, "height encoding: hdl64 | vlp16");
+    v.field("rows", rows, "radial bins (paper: 80)").within(1, kMaxRows);
+    // The LoG-Gabor filters take each row's real DFT: an even length of 4 at least.
+    v.field("columns", columns, "angular bins (paper: 360)")
+        .within(4, kMaxColumns)
+        .rule(columns % 2 == 0, "must be even");
+    v.field("max_range", max_range, "m, radial extent of the image (paper: 80)").positive();
+    v.field("sensor", sensor, "height encoding: hdl64 | vlp16").oneOf({"hdl64", "vlp16"});
     v.field("custom_height", custom_height,
             "use the height section instead of the sensor's encoding");
     v.section("height", height, "custom height slabs");
     v.section("log_gabor", log_gabor, "LoG-Gabor feature filters (paper Eq. 2)");
     v.field("neighbour_shifts", neighbour_shifts,
-            "shifts either side of the FFT peak tried (original: 2)");
+            "shifts either side of the FFT peak tried (original: 2)")
+        .nonNegative()
+        .rule(neighbour_shifts <= columns / 4,
+              "must be at most columns / 4 (" + std::to_string(columns / 4) + ")");
     v.field("match_reverse", match_reverse, "also match the opposite driving direction");
-    v.field("shift_bands", shift_bands, "radial bands kept for the phase correlation");
+    v.field("shift_bands", shift_bands, "radial bands kept for the phase correlation")
+        .positive()
+        .atMost(rows, "rows");
   }
 };
 
 /// Scan Context parameters (Kim & Kim 2018 defaults).
 struct ScanContextConfig {
+  static constexpr int kMaxRings = 1024;    ///< radial bins at most
+  static constexpr int kMaxSectors = 4096;  ///< angular bins at most
+
   int rings = 20;         ///< radial bins (Scan Context: 20)
   int sectors = 60;       ///< angular bins (Scan Context: 60, 6 degrees each)
   double max_range = 80;  ///< m (Scan Context: 80)
   double sensor_height =
       2.0;  ///< m, added to z so that bin heights are positive (Scan Context: 2.0)
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("rings", rings, "radial bins (Scan Context: 20)");
-    v.field("sectors", sectors, "angular bins (Scan Context: 60)");
-    v.field("max_range", max_range, "m, radial extent (Scan Context: 80)");
+    v.field("rings", rings, "radial bins (Scan Context: 20)").within(1, kMaxRings);
+    v.field("sectors", sectors, "angular bins (Scan Context: 60)").within(4, kMaxSectors);
+    v.field("max_range", max_range, "m, radial extent (Scan Context: 80)").positive();
     v.field("sensor_height", sensor_height,
-            "m, added to z so heights are positive (Scan Context: 2.0)");
+            "m, added to z so heights are positive (Scan Context: 2.0)")
+        .finite();
   }
 };
 
@@ -116,10 +141,11 @@ struct DescriptorConfig {
   IrisConfig iris{};
   ScanContextConfig scan_context{};
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("kind", kind, "iris | scancontext");
+    v.field("kind", kind, "iris | scancontext")
+        .rule(parseDescriptorKind(kind).has_value(), "must be one of iris, scancontext");
     v.section("iris", iris, "LiDAR-Iris");
     v.section("scan_context", scan_context, "Scan Context (baseline)");
   }
@@ -133,15 +159,6 @@ struct Match {
   bool reversed = false;  ///< the best match was the opposite driving direction (|yaw| > 90°)
   int shift = 0;          ///< columns (sectors) the query was shifted by, in [0, columns)
 };
-
-/// Which algorithm made a descriptor.
-enum class DescriptorKind { kLidarIris, kScanContext };
-
-/// "iris" or "scancontext".
-std::string_view toString(DescriptorKind kind);
-
-/// Parses "iris" / "lidar-iris" / "scancontext" / "scan-context"; nullopt otherwise.
-std::optional<DescriptorKind> parseDescriptorKind(std::string_view name);
 
 /// One scan's description, immutable once made. Concrete types: IrisDescriptor
 /// (lidar_iris.hpp), ScanContextDescriptor (scan_context.hpp).

@@ -40,16 +40,22 @@ class DecodeError : public core::Error {
 
 /// Encoding options.
 struct IrisCodecConfig {
+  static constexpr int kMaxZstdLevel = 22;  ///< zstd's strongest level (ZSTD_maxCLevel)
+
   /// zstd level 1..22. On KITTI 00 (mean bytes, encode time a scan): 3: 2998 B,
   /// 0.06 ms; 9: 2699 B, 0.7 ms; 15: 2511 B, 3 ms; 19: 2477 B, 14 ms.
   int zstd_level = 15;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("zstd_level", zstd_level, "zstd level for descriptors on the wire (1..22)");
+    v.field("zstd_level", zstd_level, "zstd level for descriptors on the wire (1..22)")
+        .within(1, kMaxZstdLevel);
   }
 };
+
+/// Throws core::Error naming the first field that breaks its rule (visit()).
+void validate(const IrisCodecConfig& config);
 
 /// Encodes an occupancy image. Throws core::Error when it is empty or its cell
 /// count does not match its dimensions.

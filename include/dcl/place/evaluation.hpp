@@ -20,6 +20,7 @@
 #include <Eigen/Geometry>
 #include <cstddef>
 #include <memory>
+#include <numbers>
 #include <optional>
 #include <string>
 #include <vector>
@@ -105,13 +106,15 @@ struct EvaluationConfig {
   /// The per-robot indices; max_distance is not used (the curve sweeps it).
   PlaceIndexConfig index{};
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
     v.field("true_loop_distance", true_loop_distance,
-            "m, ground-truth distance of a true loop (paper: 4)");
+            "m, ground-truth distance of a true loop (paper: 4)")
+        .positive();
     v.field("opposite_heading", opposite_heading,
-            "rad, heading change of an opposite-direction revisit");
+            "rad, heading change of an opposite-direction revisit")
+        .within(0.0, std::numbers::pi);
     v.section("index", index, "the place index searched");
   }
 };

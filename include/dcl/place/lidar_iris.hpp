@@ -122,7 +122,7 @@ class LidarIris final : public Descriptor {
   IrisConfig config_;
 };
 
-/// Throws core::Error naming the first invalid LiDAR-Iris parameter.
+/// Throws core::Error naming the first field that breaks its rule (visit()).
 void validate(const IrisConfig& config);
 
 }  // namespace dcl::place

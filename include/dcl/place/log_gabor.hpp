@@ -12,10 +12,14 @@
 #include <span>
 #include <vector>
 
+#include <dcl/core/config.hpp>
+
 namespace dcl::place {
 
 /// Parameters of the filter bank (paper §III-B and the original LiDAR-Iris).
 struct LogGaborConfig {
+  static constexpr int kMaxScales = 16;  ///< filters at most
+
   int scales = 4;              ///< number of filters (paper: 4)
   double min_wavelength = 18;  ///< columns, wavelength of the finest filter (paper: 18)
   double multiplier = 1.6;     ///< wavelength ratio between successive filters (paper: 1.6)
@@ -23,15 +27,20 @@ struct LogGaborConfig {
   double mask_threshold =
       1e-4;  ///< responses with a magnitude below this are masked (original: 1e-4)
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("scales", scales, "number of LoG-Gabor filters (paper: 4)");
+    v.field("scales", scales, "number of LoG-Gabor filters (paper: 4)").within(1, kMaxScales);
+    // Two columns: the shortest wavelength a row of samples holds (Nyquist).
     v.field("min_wavelength", min_wavelength,
-            "columns, wavelength of the finest filter (paper: 18)");
-    v.field("multiplier", multiplier, "wavelength ratio between filters (paper: 1.6)");
-    v.field("sigma_on_f", sigma_on_f, "sigma / f0, filter bandwidth of Eq. 2 (paper: 0.75)");
-    v.field("mask_threshold", mask_threshold, "response magnitudes below this are masked");
+            "columns, wavelength of the finest filter (paper: 18)")
+        .atLeast(2.0);
+    v.field("multiplier", multiplier, "wavelength ratio between filters (paper: 1.6)")
+        .greaterThan(1.0);
+    v.field("sigma_on_f", sigma_on_f, "sigma / f0, filter bandwidth of Eq. 2 (paper: 0.75)")
+        .within(0.0, 1.0, core::Interval::open);
+    v.field("mask_threshold", mask_threshold, "response magnitudes below this are masked")
+        .nonNegative();
   }
 };
 

@@ -18,6 +18,7 @@
 #include <optional>
 #include <vector>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/ids.hpp>
 #include <dcl/place/descriptor.hpp>
 
@@ -29,6 +30,8 @@ class KeyTree;
 
 /// How an index searches (DESIGN.md §6).
 struct PlaceIndexConfig {
+  static constexpr std::size_t kMaxCandidates = 1000;  ///< candidates at most (each is matched)
+
   /// Nearest keys re-ranked by the full match (paper and DESIGN §6: 10).
   std::size_t candidates = 10;
   /// Accept the best candidate when its match distance is below this. The paper
@@ -50,20 +53,28 @@ struct PlaceIndexConfig {
   /// m, how far apart two stored keyframes must be to count as different places.
   double distinct_separation = 20.0;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("candidates", candidates, "nearest keys re-ranked by the full match (paper: 10)");
+    v.field("candidates", candidates, "nearest keys re-ranked by the full match (paper: 10)")
+        .within(1, kMaxCandidates);
+    // Match distances lie in [0, 1]: 0 accepts nothing, 1 everything.
     v.field("max_distance", max_distance,
-            "accept a match distance below this (paper: 0.3 LiDAR-Iris, 0.35 Scan Context)");
+            "accept a match distance below this (paper: 0.3 LiDAR-Iris, 0.35 Scan Context)")
+        .within(0.0, 1.0, core::Interval::open_low);
     v.field("exclude_recent", exclude_recent,
             "most recent own keyframes skipped by intra-robot queries");
     v.field("distinct_ratio", distinct_ratio,
-            "refuse a match when another place's distance is within the best's / this (1: off)");
+            "refuse a match when another place's distance is within the best's / this (1: off)")
+        .within(0.0, 1.0, core::Interval::open_low);
     v.field("distinct_separation", distinct_separation,
-            "m, stored keyframes this far apart are different places");
+            "m, stored keyframes this far apart are different places")
+        .nonNegative();
   }
 };
+
+/// Throws core::Error naming the first field that breaks its rule (visit()).
+void validate(const PlaceIndexConfig& config);
 
 /// Whose keyframes a query is looking for.
 enum class QueryScope {

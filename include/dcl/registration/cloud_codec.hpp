@@ -28,6 +28,7 @@
 #include <span>
 #include <vector>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/core/point_cloud.hpp>
 
@@ -54,6 +55,8 @@ class CloudDecodeError : public core::Error {
 
 /// How the cloud is made compact.
 struct CloudCodecConfig {
+  static constexpr int kMaxZstdLevel = 22;  ///< zstd's strongest level (ZSTD_maxCLevel)
+
   /// m, voxel filter before quantisation; 0 sends the points as they are.
   /// Keep it equal to VerificationConfig::voxel_size.
   double voxel_size = 0.6;
@@ -68,15 +71,21 @@ struct CloudCodecConfig {
   /// 3: 23.6 kB, 3.0 ms; 9: 23.4 kB, 3.0 ms; 15: 23.2 kB, 4.5 ms; 19: 23.3 kB, 9 ms.
   int zstd_level = 15;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("voxel_size", voxel_size, "m, voxel filter before quantisation (0: none)");
-    v.field("resolution", resolution, "m, finest quantisation step");
-    v.field("max_range", max_range, "m, farther points are not sent (0: all)");
-    v.field("zstd_level", zstd_level, "zstd level for verification clouds (1..22)");
+    v.field("voxel_size", voxel_size, "m, voxel filter before quantisation (0: none)")
+        .zeroOrWithin(core::kMinVoxelEdge, core::kMaxVoxelEdge, "none");
+    v.field("resolution", resolution, "m, finest quantisation step")
+        .within(kCloudCodecMinResolution, kCloudCodecMaxResolution);
+    v.field("max_range", max_range, "m, farther points are not sent (0: all)").nonNegative();
+    v.field("zstd_level", zstd_level, "zstd level for verification clouds (1..22)")
+        .within(1, kMaxZstdLevel);
   }
 };
+
+/// Throws core::Error naming the first field that breaks its rule (visit()).
+void validate(const CloudCodecConfig& config);
 
 /// Encodes the points of `cloud` (its keyframe frame; other channels are not
 /// sent). Non-finite points are dropped. Throws core::Error for an invalid

@@ -29,11 +29,13 @@ struct FpfhConfig {
   /// Neighbours used at most (the nearest ones), bounding the cost in dense areas.
   std::size_t max_neighbors = 64;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("radius", radius, "m, neighbourhood of a feature (about 5 point spacings)");
-    v.field("max_neighbors", max_neighbors, "nearest neighbours used at most");
+    v.field("radius", radius, "m, neighbourhood of a feature (about 5 point spacings)").positive();
+    // A feature needs three neighbours; a search returns PointTree::kMaxNeighbors at most.
+    v.field("max_neighbors", max_neighbors, "nearest neighbours used at most")
+        .within(3, PointTree::kMaxNeighbors);
   }
 };
 

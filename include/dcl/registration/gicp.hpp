@@ -18,6 +18,7 @@
 #include <cstdint>
 #include <vector>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/se3.hpp>
 #include <dcl/registration/point_tree.hpp>
 
@@ -92,18 +93,23 @@ struct GicpConfig {
   /// m, a source point keeps its partner until it moves this far (saves searches)
   double reassociation_distance = 0.05;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("max_iterations", max_iterations, "Gauss-Newton iterations at most");
+    v.field("max_iterations", max_iterations, "Gauss-Newton iterations at most").positive();
     v.field("max_correspondence_distance", max_correspondence_distance,
-            "m, farthest nearest neighbour taken as a pair");
-    v.field("convergence_criterion", convergence_criterion, "stop below this update norm");
-    v.field("kernel_scale", kernel_scale, "m, Geman-McClure scale on pair distances (0: none)");
-    v.field("min_pairs", min_pairs, "fewest pairs for convergence");
-    v.field("inlier_distance", inlier_distance, "m, pairs closer are inliers (0: the gate)");
+            "m, farthest nearest neighbour taken as a pair")
+        .positive();
+    v.field("convergence_criterion", convergence_criterion, "stop below this update norm")
+        .positive();
+    v.field("kernel_scale", kernel_scale, "m, Geman-McClure scale on pair distances (0: none)")
+        .nonNegative();
+    v.field("min_pairs", min_pairs, "fewest pairs for convergence").positive();
+    v.field("inlier_distance", inlier_distance, "m, pairs closer are inliers (0: the gate)")
+        .nonNegative();
     v.field("reassociation_distance", reassociation_distance,
-            "m, a point keeps its partner until it moves this far");
+            "m, a point keeps its partner until it moves this far")
+        .nonNegative();
   }
 };
 

@@ -13,12 +13,15 @@
 #include <cstdint>
 #include <span>
 
+#include <dcl/core/config.hpp>
 #include <dcl/registration/fpfh.hpp>
 
 namespace dcl::registration {
 
 /// How RANSAC samples and scores.
 struct RansacConfig {
+  static constexpr int kMaxIterations = 10'000'000;  ///< samples at most (seconds of work each 1e6)
+
   int max_iterations = 100000;   ///< samples drawn at most
   double inlier_distance = 1.5;  ///< m, a correspondence is explained within this distance
   /// Shortest over longest of each pair of matching triangle edges, at least.
@@ -28,15 +31,19 @@ struct RansacConfig {
   std::size_t min_inliers = 8;  ///< fewer explained correspondences: nothing found
   std::uint64_t seed = 1;       ///< random generator seed (runs are reproducible)
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("max_iterations", max_iterations, "samples drawn at most");
-    v.field("inlier_distance", inlier_distance, "m, a correspondence is explained within this");
+    v.field("max_iterations", max_iterations, "samples drawn at most").within(1, kMaxIterations);
+    v.field("inlier_distance", inlier_distance, "m, a correspondence is explained within this")
+        .positive();
     v.field("edge_similarity", edge_similarity,
-            "shortest/longest of matching triangle edges, at least");
-    v.field("confidence", confidence, "stop once this sure no better hypothesis is left");
-    v.field("min_inliers", min_inliers, "fewest explained correspondences for a result");
+            "shortest/longest of matching triangle edges, at least")
+        .within(0.0, 1.0, core::Interval::open_low);
+    v.field("confidence", confidence, "stop once this sure no better hypothesis is left")
+        .within(0.0, 1.0, core::Interval::open);
+    // A rigid transform needs three correspondences.
+    v.field("min_inliers", min_inliers, "fewest explained correspondences for a result").atLeast(3);
     v.field("seed", seed, "random generator seed");
   }
 };

@@ -65,33 +65,44 @@ struct VerificationConfig {
   /// there, and LiDAR-Iris's yaw finds both driving directions alike.
   double symmetric_share = 0.9;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("voxel_size", voxel_size, "m, grid of the query and the submap for GICP");
-    v.field("shape_neighbors", shape_neighbors, "nearest points of a covariance and normal");
+    v.field("voxel_size", voxel_size, "m, grid of the query and the submap for GICP")
+        .within(core::kMinVoxelEdge, core::kMaxVoxelEdge);
+    // A covariance and a normal need three points; the search returns kMaxNeighbors at most.
+    v.field("shape_neighbors", shape_neighbors, "nearest points of a covariance and normal")
+        .within(3, static_cast<int>(PointTree::kMaxNeighbors));
     v.field("coarse_correspondence_distance", coarse_correspondence_distance,
-            "m, GICP gate of the first stage");
+            "m, GICP gate of the first stage")
+        .positive();
     v.field("max_correspondence_distance", max_correspondence_distance,
-            "m, GICP gate of the fine stage");
-    v.field("max_iterations", max_iterations, "Gauss-Newton iterations a stage");
+            "m, GICP gate of the fine stage")
+        .positive();
+    v.field("max_iterations", max_iterations, "Gauss-Newton iterations a stage").positive();
     v.field("inlier_distance", inlier_distance,
-            "m, a query point this close to the submap is an inlier");
+            "m, a query point this close to the submap is an inlier")
+        .positive();
     v.field("min_inlier_share", min_inlier_share,
-            "share of query points that are inliers, at least");
-    v.field("max_fitness", max_fitness, "m, RMS distance of the pairs, at most");
+            "share of query points that are inliers, at least")
+        .within(0.0, 1.0);
+    v.field("max_fitness", max_fitness, "m, RMS distance of the pairs, at most").positive();
     v.field("min_degeneracy", min_degeneracy,
-            "weakest/strongest scaled eigenvalue of the alignment, at least");
+            "weakest/strongest scaled eigenvalue of the alignment, at least")
+        .within(0.0, 1.0, core::Interval::open_high);
     v.field("min_points", min_points, "fewest filtered points in query and submap");
     v.field("ransac_fallback", ransac_fallback,
             "FPFH + RANSAC when the yaw-initialised alignment fails");
-    v.field("feature_voxel_size", feature_voxel_size, "m, grid of the feature clouds");
+    v.field("feature_voxel_size", feature_voxel_size, "m, grid of the feature clouds")
+        .within(core::kMinVoxelEdge, core::kMaxVoxelEdge);
     v.section("fpfh", fpfh, "FPFH features of the fallback");
     v.section("ransac", ransac, "RANSAC global registration of the fallback");
-    v.field("submap_keyframes", submap_keyframes, "keyframes either side in the submap");
+    v.field("submap_keyframes", submap_keyframes, "keyframes either side in the submap")
+        .nonNegative();
     v.field("symmetric_share", symmetric_share,
             "refuse a loop that also aligns turned half a turn, with this share of its inliers "
-            "(0: not checked)");
+            "(0: not checked)")
+        .within(0.0, 1.0);
   }
 };
 
@@ -165,7 +176,7 @@ VerificationResult verifyLoop(const core::PointCloud& query_cloud, double yaw_gu
 core::PointCloud buildSubmap(std::span<const core::Keyframe> keyframes, std::size_t center,
                              int radius, double voxel_size = 0.0);
 
-/// Throws core::Error naming the first invalid field of `config`.
+/// Throws core::Error naming the first field that breaks its rule (visit()).
 void validate(const VerificationConfig& config);
 
 }  // namespace dcl::registration

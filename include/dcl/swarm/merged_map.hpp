@@ -18,12 +18,16 @@
 #include <span>
 #include <vector>
 
+#include <dcl/core/config.hpp>
 #include <dcl/core/point_cloud.hpp>
 
 namespace dcl::swarm {
 
 /// The map a swarm run keeps and writes.
 struct MapConfig {
+  static constexpr double kMinVoxel = 0.05;  ///< m, the finest map voxel
+  static constexpr double kMaxVoxel = 20.0;  ///< m, the coarsest map voxel
+
   /// m, voxel edge of the kept keyframe clouds, of each robot's map and of the
   /// merged map (one grid for all, so that a voxel of the merged map gathers
   /// at most one point of each robot's map); 0 keeps no map. 0.4 m is the
@@ -33,15 +37,16 @@ struct MapConfig {
   /// 0.2 m would take 4.4 million points and twice the memory a keyframe.
   double voxel = 0.4;
 
-  /// Lists the fields for the YAML loader (io/config.hpp).
+  /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("voxel", voxel, "m, voxel edge of the kept keyframe clouds and the maps (0: no map)");
+    // Finer than the range noise of a LiDAR keeps nearly every point of a scan.
+    v.field("voxel", voxel, "m, voxel edge of the kept keyframe clouds and the maps (0: no map)")
+        .zeroOrWithin(kMinVoxel, kMaxVoxel, "no map");
   }
 };
 
-/// Throws core::Error unless the voxel is 0 or within [0.05, 20] m (finer
-/// than the range noise of a LiDAR keeps nearly every point of a scan).
+/// Throws core::Error unless the voxel is 0 or within [0.05, 20] m (visit()).
 void validate(const MapConfig& config);
 
 /// One robot's keyframe clouds, each voxel-filtered and stored compactly in
