@@ -1,7 +1,8 @@
 // Writes the fuzzers' seed corpora: every message kind with realistic values,
 // a real KITTI descriptor and verification cloud, and small pieces of real
 // files (bags, pose-graph benchmarks, KITTI and TUM trajectories, KITTI scans,
-// PCD and PLY clouds through our writers), so that fuzzing starts from inputs
+// PCD and PLY clouds through our writers), the program's `config --dump` and
+// dataset.yaml as the simulator writes it, so that fuzzing starts from inputs
 // that reach deep into each decoder and reader.
 // Usage: fuzz_seeds DIR   (writes DIR/<target> for every target)
 #include <algorithm>
@@ -15,12 +16,16 @@
 
 #include <dcl/comm/messages.hpp>
 #include <dcl/io/bag_writer.hpp>
+#include <dcl/io/config.hpp>
+#include <dcl/io/dataset.hpp>
 #include <dcl/io/kitti_scan.hpp>
 #include <dcl/io/pcd.hpp>
 #include <dcl/io/ply.hpp>
 #include <dcl/place/descriptor_codec.hpp>
 #include <dcl/place/lidar_iris.hpp>
 #include <dcl/registration/cloud_codec.hpp>
+
+#include "app_config.hpp"
 
 namespace {
 
@@ -211,6 +216,32 @@ std::vector<comm::Body> bodies(const std::vector<std::uint8_t>& descriptor,
       comm::MapSummary{12, cloud}};
 }
 
+/// The config target's seeds: the program's `config --dump`, and dataset.yaml
+/// as the simulator writes it (a preset) and as its exports do (KITTI, bags).
+void writeConfigSeeds(const std::filesystem::path& dir) {
+  write(dir, "dump.yaml", dcl::io::dumpConfig(dcl::apps::AppConfig{}));
+  write(dir, "overrides.yaml",
+        "odometry: {max_range: 80, min_range: 3}\nplace:\n  descriptor:\n    kind: scancontext\n");
+  dcl::io::DatasetSpec spec;
+  spec.name = "kitti05-3";
+  spec.description = "KITTI 05 split in three robots in a generated city";
+  spec.sim = dcl::io::SimSpec{.world = dcl::io::WorldKind::city, .seed = 3, .shared_unit = true};
+  for (const std::string name : {"a", "b", "c"}) {
+    spec.robots.push_back(
+        {.name = name, .ground_truth = "ground_truth/" + name + ".tum", .start_time = 0.0});
+  }
+  write(dir, "dataset_sim.yaml", dcl::io::datasetYaml(spec));
+  spec.sim.reset();
+  spec.sensor = "vlp16";
+  spec.mount_height = 0.8;
+  spec.robots[0].scans = {
+      .type = dcl::io::ScanSourceType::kitti, .folder = "a/velodyne", .times = "a/times.txt"};
+  spec.robots[1].scans = {
+      .type = dcl::io::ScanSourceType::bag, .file = "b/b.bag", .topic = "/points"};
+  spec.robots[2].start_time = 12.5;
+  write(dir, "dataset_export.yaml", dcl::io::datasetYaml(spec));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -258,6 +289,7 @@ int main(int argc, char** argv) {
   std::filesystem::copy_file(std::string(DCL_DATA_DIR) + "/rosbags/evo_tf_example.bag",
                              dir / "bag" / "evo_tf_example.bag",
                              std::filesystem::copy_options::overwrite_existing);
+  writeConfigSeeds(dir / "config");
   std::printf("seeds written to %s\n", dir.c_str());
   return 0;
 }

@@ -279,10 +279,9 @@ void readTop(MapReader top, DatasetSpec& spec, const DatasetReadOptions& options
   top.finish();
 }
 
-YAML::Node parseYaml(const std::string& path) {
-  const std::vector<char> bytes = readFile(path);
+YAML::Node parseYaml(std::string_view text, const std::string& path) {
   try {
-    return YAML::Load(std::string(bytes.begin(), bytes.end()));
+    return YAML::Load(std::string(text));
   } catch (const YAML::Exception& e) {
     core::FileLocation location{path};
     if (!e.mark.is_null()) location.line = static_cast<std::size_t>(e.mark.line) + 1;
@@ -396,7 +395,13 @@ std::optional<std::size_t> DatasetSpec::robotIndex(std::string_view robot_name) 
 DatasetSpec readDataset(const std::string& path, const DatasetReadOptions& options) {
   const bool is_folder = fs::is_directory(path);
   const std::string file = is_folder ? (fs::path(path) / kDatasetFileName).string() : path;
-  const YAML::Node root = parseYaml(file);
+  const std::vector<char> bytes = readFile(file);
+  return parseDataset(std::string_view(bytes.data(), bytes.size()), file, options);
+}
+
+DatasetSpec parseDataset(std::string_view text, const std::string& file,
+                         const DatasetReadOptions& options) {
+  const YAML::Node root = parseYaml(text, file);
   if (!root.IsMap()) throw core::FileError({file}, "expected a mapping of dataset keys");
   DatasetSpec spec;
   readTop(MapReader(file, "", root, root.Mark()), spec, options);

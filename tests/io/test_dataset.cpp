@@ -107,6 +107,16 @@ TEST(Dataset, ReadsTheYamlFileItselfAndWithoutSimSection) {
   EXPECT_EQ(spec.resolve(spec.robots[0].ground_truth), dir.file("a.tum"));
 }
 
+TEST(Dataset, ParsesTextAsTheFileItNames) {
+  const DatasetSpec spec = parseDataset(kGood, "data/kitti05/dataset.yaml");
+  EXPECT_EQ(spec.name, "kitti05");
+  EXPECT_EQ(spec.folder, "data/kitti05");
+  EXPECT_EQ(spec.resolve(spec.robots[0].ground_truth), "data/kitti05/a.tum");
+  EXPECT_TRUE(contains(
+      fileError([] { (void)parseDataset(edited("type: kitti", "type: lidar"), "d/dataset.yaml"); }),
+      "d/dataset.yaml:10: field 'robots[0].scans.type'"));
+}
+
 TEST(Dataset, FileStatesTheConventions) {
   const std::string text = datasetYaml(mixedSpec());
   EXPECT_TRUE(contains(text, "ground_truth: T_world_sensor"));

@@ -126,6 +126,11 @@ struct DatasetReadOptions {
 /// fields its type needs.
 DatasetSpec readDataset(const std::string& path, const DatasetReadOptions& options = {});
 
+/// Reads a dataset.yaml from its text, as readDataset reads the file `file`
+/// (which names it in errors and whose folder relative paths resolve against).
+DatasetSpec parseDataset(std::string_view text, const std::string& file,
+                         const DatasetReadOptions& options = {});
+
 /// The dataset.yaml text of `spec`, with comments explaining the conventions.
 std::string datasetYaml(const DatasetSpec& spec);
 
