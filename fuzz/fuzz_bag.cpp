@@ -2,6 +2,7 @@
 // PointCloud2, Odometry and PoseStamped messages in them). A reader may refuse
 // input only with core::FileError. The input is handed over as an in-memory file.
 #include <cstdint>
+#include <set>
 #include <string>
 
 #include <sys/mman.h>
@@ -12,12 +13,13 @@
 
 namespace {
 
-/// Reads a few topics the way the pipeline does: clouds one by one, past bad
-/// ones (each topic opens the bag anew, so more would only slow the search).
+/// Reads one topic of each message type the way the pipeline does: clouds one
+/// by one, past bad ones (each topic opens the bag anew, and a second topic of
+/// a type would only slow the search).
 void readAll(const std::string& path) {
-  int opened = 0;
+  std::set<std::string> types_read;
   for (const auto& topic : dcl::io::listBagTopics(path)) {
-    if (++opened > 4) break;
+    if (!types_read.insert(topic.type).second) continue;
     try {
       if (topic.type == "sensor_msgs/PointCloud2") {
         dcl::io::BagCloudReader reader(path, topic.name);

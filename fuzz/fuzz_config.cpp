@@ -33,14 +33,16 @@ void readConfig(std::string_view text) {
   }
   if (const auto violation = dcl::core::firstViolation(config))
     broken("an accepted configuration breaks a rule", dcl::core::describe(*violation));
-  const std::string dump = dcl::io::dumpConfig(config);
+  // The fields alone: what reads back is the same, in a third of the text.
+  const std::string dump = dcl::io::dumpConfig(config, /*comments=*/false);
   dcl::apps::AppConfig again;
   try {
     dcl::io::applyYaml(dump, again, "dump.yaml");
   } catch (const dcl::core::FileError& e) {
     broken("the dump of an accepted configuration is refused", e.what());
   }
-  if (dcl::io::dumpConfig(again) != dump) broken("the dump does not read back", dump);
+  if (dcl::io::dumpConfig(again, /*comments=*/false) != dump)
+    broken("the dump does not read back", dump);
 }
 
 void readDataset(std::string_view text) {

@@ -218,8 +218,31 @@ std::vector<comm::Body> bodies(const std::vector<std::uint8_t>& descriptor,
 
 /// The config target's seeds: the program's `config --dump`, and dataset.yaml
 /// as the simulator writes it (a preset) and as its exports do (KITTI, bags).
+/// The dump is also cut into its top-level sections, one seed each: a mutation
+/// of a short seed parses many times faster than one of the whole dump.
 void writeConfigSeeds(const std::filesystem::path& dir) {
-  write(dir, "dump.yaml", dcl::io::dumpConfig(dcl::apps::AppConfig{}));
+  const std::string dump = dcl::io::dumpConfig(dcl::apps::AppConfig{});
+  write(dir, "dump.yaml", dump);
+  std::vector<std::string> lines;
+  std::istringstream in(dump);
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  // A section starts at the comments right above its top-level key.
+  std::vector<std::size_t> starts;
+  for (std::size_t i = 0; i < lines.size(); ++i) {
+    if (lines[i].empty() || lines[i][0] == ' ' || lines[i][0] == '#') continue;
+    std::size_t start = i;
+    while (start > 0 && !lines[start - 1].empty() && lines[start - 1][0] == '#') --start;
+    starts.push_back(start);
+  }
+  for (std::size_t s = 0; s < starts.size(); ++s) {
+    const std::size_t end = s + 1 < starts.size() ? starts[s + 1] : lines.size();
+    std::string text, key;
+    for (std::size_t i = starts[s]; i < end; ++i) {
+      if (key.empty() && lines[i][0] != '#') key = lines[i].substr(0, lines[i].find(':'));
+      text += lines[i] + "\n";
+    }
+    write(dir, "section_" + key + ".yaml", text);
+  }
   write(dir, "overrides.yaml",
         "odometry: {max_range: 80, min_range: 3}\nplace:\n  descriptor:\n    kind: scancontext\n");
   dcl::io::DatasetSpec spec;

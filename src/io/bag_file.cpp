@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <new>
 #include <optional>
 #include <string_view>
 #include <utility>
@@ -154,8 +155,12 @@ void decompress(std::span<const char> in, std::uint32_t size, std::vector<char>&
 
 template <class Fail>
 void decompressBz2(std::span<const char> in, std::uint32_t size, std::vector<char>& out,
+                   void* (*allocate)(void*, int, int), void (*release)(void*, void*), void* memory,
                    Fail&& fail) {
   bz_stream stream{};
+  stream.bzalloc = allocate;
+  stream.bzfree = release;
+  stream.opaque = memory;
   if (BZ2_bzDecompressInit(&stream, 0, 0) != BZ_OK) fail("cannot start bz2 decompression");
   struct End {
     bz_stream* s;
@@ -423,12 +428,43 @@ void BagFile::loadChunk(std::size_t index) {
     std::vector<char> compressed;
     readAt(chunk.data_byte, chunk.data_size, compressed);
     if (chunk.compression == "bz2") {
-      decompressBz2(compressed, chunk.size, chunk_bytes_, fail);
+      decompressBz2(compressed, chunk.size, chunk_bytes_, &Bz2Memory::allocate, &Bz2Memory::release,
+                    &bz2_memory_, fail);
     } else {
       decompressLz4(compressed, chunk.size, chunk_bytes_, fail);
     }
   }
   loaded_chunk_ = index;
+}
+
+void* BagFile::Bz2Memory::allocate(void* self, int count, int size) {
+  auto& blocks = static_cast<Bz2Memory*>(self)->blocks_;
+  if (count < 0 || size < 0) return nullptr;
+  const std::size_t bytes = static_cast<std::size_t>(count) * static_cast<std::size_t>(size);
+  for (Block& block : blocks) {
+    if (!block.in_use && block.size == bytes) {
+      block.in_use = true;
+      return block.bytes.get();
+    }
+  }
+  // bzlib holds three blocks at most at once (its state, and its block arrays).
+  constexpr std::size_t kMaxKept = 8;
+  if (blocks.size() == kMaxKept) {
+    const auto idle =
+        std::find_if(blocks.begin(), blocks.end(), [](const Block& b) { return !b.in_use; });
+    if (idle == blocks.end()) return nullptr;
+    blocks.erase(idle);
+  }
+  std::unique_ptr<char[]> fresh(new (std::nothrow) char[bytes == 0 ? 1 : bytes]);
+  if (!fresh) return nullptr;
+  blocks.push_back({std::move(fresh), bytes, true});
+  return blocks.back().bytes.get();
+}
+
+void BagFile::Bz2Memory::release(void* self, void* block) {
+  for (Block& b : static_cast<Bz2Memory*>(self)->blocks_) {
+    if (b.bytes.get() == block) b.in_use = false;
+  }
 }
 
 std::vector<BagMessage> BagFile::messages(

@@ -16,6 +16,7 @@
 #include <functional>
 #include <limits>
 #include <map>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -94,6 +95,22 @@ class BagFile {
 
   std::size_t loaded_chunk_ = BagMessage::kNoChunk;
   std::vector<char> chunk_bytes_;
+  /// bzlib's work memory (3.6 MB for a stream of 900 kB blocks), kept from one
+  /// chunk to the next rather than allocated and freed for each.
+  class Bz2Memory {
+   public:
+    static void* allocate(void* self, int count, int size);
+    static void release(void* self, void* block);
+
+   private:
+    struct Block {
+      std::unique_ptr<char[]> bytes;
+      std::size_t size = 0;
+      bool in_use = false;
+    };
+    std::vector<Block> blocks_;
+  };
+  Bz2Memory bz2_memory_;
   std::vector<char> message_bytes_;
 };
 

@@ -352,6 +352,7 @@ struct YamlConfigWriter::State {
   std::vector<Entry> entries{};
   std::size_t depth = 0;
   bool after_section = false;  ///< a top-level section just ended
+  bool comments = true;        ///< doc strings and rules written above each field
 
   /// Adds an entry; a blank line before each top-level section and before what follows one.
   void add(std::string_view name, std::optional<std::string> value, std::string_view doc) {
@@ -379,10 +380,12 @@ struct YamlConfigWriter::State {
     for (const Entry& entry : entries) {
       const std::string indent(2 * entry.depth, ' ');
       if (entry.blank_before) out += "\n";
-      comment(out, indent, entry.doc);
-      std::string rules;
-      for (const auto& rule : entry.rules) rules.append(rules.empty() ? "" : "; ").append(rule);
-      comment(out, indent, rules);
+      if (comments) {
+        comment(out, indent, entry.doc);
+        std::string rules;
+        for (const auto& rule : entry.rules) rules.append(rules.empty() ? "" : "; ").append(rule);
+        comment(out, indent, rules);
+      }
       out += indent + entry.name + ":" + (entry.value ? " " + *entry.value : "") + "\n";
     }
     return out;
@@ -397,7 +400,9 @@ struct YamlConfigWriter::State {
   }
 };
 
-YamlConfigWriter::YamlConfigWriter() : state_(std::make_unique<State>()) {}
+YamlConfigWriter::YamlConfigWriter(bool comments) : state_(std::make_unique<State>()) {
+  state_->comments = comments;
+}
 
 YamlConfigWriter::~YamlConfigWriter() = default;
 

@@ -76,8 +76,8 @@ class YamlConfigReader final : public ConfigVisitor {
 /// Prints the visited fields as YAML, each after its doc string and rules as comments.
 class YamlConfigWriter final : public ConfigVisitor {
  public:
-  /// A writer with nothing written yet.
-  YamlConfigWriter();
+  /// A writer with nothing written yet; `comments` false writes the fields alone.
+  explicit YamlConfigWriter(bool comments = true);
   ~YamlConfigWriter() override;
   YamlConfigWriter(const YamlConfigWriter&) = delete;
   YamlConfigWriter& operator=(const YamlConfigWriter&) = delete;
@@ -129,11 +129,12 @@ void loadConfig(const std::string& path, Config& config) {
 }
 
 /// The effective configuration as YAML, each field preceded by its doc string and
-/// its rules as comments; loading it back gives the same values.
+/// its rules as comments (unless `comments` is false); loading it back gives the
+/// same values.
 template <class Config>
-std::string dumpConfig(const Config& config) {
+std::string dumpConfig(const Config& config, bool comments = true) {
   Config copy = config;
-  YamlConfigWriter writer;
+  YamlConfigWriter writer(comments);
   copy.visit(static_cast<ConfigVisitor&>(writer));
   return writer.text();
 }
