@@ -1,6 +1,7 @@
 // dcl-slam: the one command of the project. Subcommands live in cmd_*.cpp.
 #include <cstdio>
 #include <exception>
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -45,6 +46,22 @@ std::string printable(std::string_view text) {
     i += length;
   }
   return out;
+}
+
+/// A file system error as our own errors read: the path first, then what could
+/// not be done and why ("P: directory iterator cannot open directory: Permission
+/// denied"), not the library's "filesystem error: ... [P]".
+std::string describe(const std::filesystem::filesystem_error& e) {
+  std::string what = e.what();
+  constexpr std::string_view kPrefix = "filesystem error: ";
+  if (what.starts_with(kPrefix)) what.erase(0, kPrefix.size());
+  if (e.path1().empty()) return what;
+  // Drop the bracketed paths the library appends; the first leads instead.
+  if (const auto bracket = what.find(" [" + e.path1().string() + "]");
+      bracket != std::string::npos) {
+    what.erase(bracket);
+  }
+  return e.path1().string() + ": " + what;
 }
 
 /// "run " for `dcl-slam run`, "bench loops " ...: the command the user typed.
@@ -147,6 +164,8 @@ int main(int argc, char** argv) {
     return run(argc, argv);
   } catch (const dcl::core::Error& e) {
     std::fprintf(stderr, "dcl-slam: error: %s\n", printable(e.what()).c_str());
+  } catch (const std::filesystem::filesystem_error& e) {
+    std::fprintf(stderr, "dcl-slam: error: %s\n", printable(describe(e)).c_str());
   } catch (const std::exception& e) {
     std::fprintf(stderr, "dcl-slam: error: unexpected: %s\n", printable(e.what()).c_str());
   }

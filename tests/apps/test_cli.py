@@ -688,6 +688,23 @@ class Errors(unittest.TestCase):
         code, _, _ = run(*ate, "--offset", "-0.5", "--max-diff", "0")
         self.assertEqual(code, 0)
 
+    def test_file_system_errors_name_the_path(self):
+        # A path the system cannot resolve (a symbolic link to itself, given
+        # directly or as a robot's graph in a folder): the path first, then why.
+        with tempfile.TemporaryDirectory() as tmp:
+            os.symlink("loop", os.path.join(tmp, "loop"))
+            graphs = os.path.join(tmp, "graphs")
+            os.mkdir(graphs)
+            os.symlink("0.g2o", os.path.join(graphs, "0.g2o"))
+            for path in (os.path.join(tmp, "loop"), graphs):
+                with self.subTest(path=path):
+                    code, _, err = run("pgo", "--g2o", path, check=False)
+                    self.assertEqual(code, 1)
+                    self.assertTrue(err.startswith("dcl-slam: error: " + tmp), err)
+                    self.assertIn("Too many levels of symbolic links", err)
+                    self.assertNotIn("unexpected", err)
+                    self.assertEqual(len(err.strip().splitlines()), 1, err)
+
     def test_unknown_scan_extension(self):
         scan = os.path.join(DATA, "lidar_scans", "kitti_00", "velodyne", "000000.bin")
         code, _, err = run("convert", scan, "/tmp/x.xyz", check=False)
