@@ -57,6 +57,7 @@ struct RobotOptions {
   std::string dataset;
   std::string robot;
   std::string out = "out/robot";
+  bool force = false;  ///< replace OUT/ROBOT even when it holds files no dcl-slam command wrote
   std::string transport = "dds";
   double rate = 1.0;            ///< swarm seconds per wall second
   double epoch = 0.0;           ///< s since the Unix epoch at swarm time 0; 0: now
@@ -339,12 +340,15 @@ void runRobot(const RobotOptions& o, const AppConfig& config) {
   io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const std::size_t index = robotIndex(spec, o.robot);
   if (index > 254) throw core::Error("a swarm holds robots 0..254: '" + o.robot + "' is past it");
-  const std::string folder = o.out + "/" + o.robot;
-  requireWritableFolder(folder);  // before the run, not after it
+  // Staged beside OUT/ROBOT before the run (an unwritable place fails at once)
+  // and put in place whole; the swarm's log of this process stays in it.
+  OutputFolder output(o.out + "/" + o.robot, o.force, {"robot.log"});
+  const std::string& folder = output.out();
   RobotPlayer player(o, std::move(spec), index, robotConfig(config));
   const bool finished = player.run();
   const RobotOutputs outputs = player.outputs(!finished);
-  writeRobotOutputs(folder, outputs);
+  writeRobotOutputs(output.path(), outputs);
+  output.commit();
   if (o.json)
     fmt::print("{}\n", toJson(outputs.report).dump(2));
   else
@@ -397,6 +401,7 @@ void addRobotCommand(CLI::App& app, const AppConfig& config) {
   cmd->add_option("--interface", o->dds.interface,
                   "network interface with multicast discovery, e.g. lo (default: dds.interface)");
   cmd->add_flag("--json", o->json, "print robot.json at the end instead of the summary line");
+  addForceFlag(*cmd, o->force);
   cmd->callback([o, &config] { runRobot(*o, config); });
 }
 

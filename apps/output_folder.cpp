@@ -46,10 +46,14 @@ void removeStaleStaging(const fs::path& parent, const std::string& name) {
   }
 }
 
-bool holdsOtherFiles(const fs::path& folder) {
+bool holdsOtherFiles(const fs::path& folder, const std::vector<std::string>& carried) {
   std::error_code ec;
   if (fs::exists(folder / kMarker, ec)) return false;
-  return fs::directory_iterator(folder, ec) != fs::directory_iterator();
+  for (const auto& entry : fs::directory_iterator(folder, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (std::find(carried.begin(), carried.end(), name) == carried.end()) return true;
+  }
+  return false;
 }
 
 mode_t currentUmask() {
@@ -88,7 +92,8 @@ extern "C" void onInterrupt(int signal) {
 
 }  // namespace
 
-OutputFolder::OutputFolder(std::string out, bool force) : out_(std::move(out)) {
+OutputFolder::OutputFolder(std::string out, bool force, std::vector<std::string> carried)
+    : out_(std::move(out)), carried_(std::move(carried)) {
   fs::path target(out_);
   if (!target.has_filename()) target = target.parent_path();  // "out/" names "out"
   if (target.empty() || target.filename() == "." || target.filename() == "..") {
@@ -99,7 +104,7 @@ OutputFolder::OutputFolder(std::string out, bool force) : out_(std::move(out)) {
   if (fs::exists(status) && !fs::is_directory(status)) {
     throw core::Error(fmt::format("--out {}: is a file, not a folder", out_));
   }
-  if (fs::is_directory(status) && !force && holdsOtherFiles(target)) {
+  if (fs::is_directory(status) && !force && holdsOtherFiles(target, carried_)) {
     throw core::Error(fmt::format(
         "--out {}: holds files that no dcl-slam command wrote; name a new or empty folder, or "
         "pass --force to replace them",
@@ -149,6 +154,12 @@ void OutputFolder::requireOutside(const std::string& input, const std::string& w
 void OutputFolder::commit() {
   std::error_code ec;
   fs::permissions(staging_, static_cast<fs::perms>(0777 & ~currentUmask()), ec);
+  for (const std::string& name : carried_) {
+    const fs::path from = fs::path(out_) / name;
+    const fs::path to = fs::path(staging_) / name;
+    // A hard link: the same file under both names, so its writer's appends land in both.
+    if (fs::is_regular_file(from, ec) && !fs::exists(to, ec)) fs::create_hard_link(from, to, ec);
+  }
   if (!fs::exists(out_, ec)) {
     fs::rename(staging_, out_, ec);
     if (ec)
@@ -169,19 +180,6 @@ void OutputFolder::commit() {
   }
   committed_ = true;
   setInterruptMessage("");
-}
-
-void requireWritableFolder(const std::string& folder) {
-  std::error_code ec;
-  fs::create_directories(folder, ec);
-  if (ec) throw core::Error(fmt::format("cannot create {}: {}", folder, ec.message()));
-  std::string probe = (fs::path(folder) / ".write-test-XXXXXX").string();
-  const int fd = ::mkstemp(probe.data());
-  if (fd < 0) {
-    throw core::Error(fmt::format("cannot write into {}: {}", folder, std::strerror(errno)));
-  }
-  ::close(fd);
-  fs::remove(probe, ec);
 }
 
 void addForceFlag(CLI::App& cmd, bool& force) {

@@ -8,6 +8,7 @@
 // be written fails at once, not after minutes of computing.
 
 #include <string>
+#include <vector>
 
 namespace CLI {
 class App;
@@ -19,8 +20,11 @@ class OutputFolder {
  public:
   /// Checks `out` and makes the staging folder beside it. Throws core::Error
   /// when `out` is a file, cannot be written, or holds files that no dcl-slam
-  /// command wrote (unless `force`: then they are replaced).
-  OutputFolder(std::string out, bool force);
+  /// command wrote (unless `force`: then they are replaced). The files named in
+  /// `carried` are another process's, written into `out` while this one runs
+  /// (the swarm's robot.log in OUT/ROBOT): they stay in the new output, linked
+  /// into it, so that their writer goes on writing into them.
+  OutputFolder(std::string out, bool force, std::vector<std::string> carried = {});
   /// Removes the staging folder unless it was committed.
   ~OutputFolder();
   OutputFolder(const OutputFolder&) = delete;
@@ -41,13 +45,9 @@ class OutputFolder {
  private:
   std::string out_;
   std::string staging_;
+  std::vector<std::string> carried_;
   bool committed_ = false;
 };
-
-/// Creates `folder` and checks that a file can be written in it; throws
-/// core::Error naming the folder and the reason. For commands that write into
-/// a folder shared with others (`robot` writes OUT/ROBOT), checked before the work.
-void requireWritableFolder(const std::string& folder);
 
 /// Adds `--force` (replace an output folder that holds other files) to `cmd`.
 void addForceFlag(CLI::App& cmd, bool& force);

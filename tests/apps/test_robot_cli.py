@@ -85,6 +85,41 @@ class Robot(unittest.TestCase):
                 code, _, err = self.robot("--dataset", self.dataset, "--robot", "a", *args)
                 self.assertOneLineError(code, err, named)
 
+    def test_its_folder_is_replaced_whole_keeping_the_launchers_log(self):
+        short = ["--dataset", self.dataset, "--robot", "a", "--max-frames", "10", "--rate", "20",
+                 "--linger", "0", "--settle", "0"]
+        theirs = os.path.join(self.tmp.name, "theirs")
+        os.makedirs(os.path.join(theirs, "a"))
+        with open(os.path.join(theirs, "a", "thesis.tex"), "w") as f:
+            f.write("three years of work")
+        code, _, err = run("robot", "--out", theirs, *short, check=False)
+        self.assertOneLineError(code, err, os.path.join(theirs, "a"), "--force")
+        self.assertEqual(os.listdir(os.path.join(theirs, "a")), ["thesis.tex"])
+        # As `swarm` launches it: OUT/ROBOT/robot.log is open for the robot's output.
+        out = os.path.join(self.tmp.name, "launched")
+        os.makedirs(os.path.join(out, "a"))
+        with open(os.path.join(out, "a", "robot.log"), "a", buffering=1) as log:
+            log.write("launched\n")
+            for attempt in range(2):
+                if attempt == 1:
+                    with open(os.path.join(out, "a", "left-by-the-last-run.txt"), "w") as f:
+                        f.write("x")
+                proc = subprocess.run(
+                    [DCL_SLAM, "robot", "--out", out, "--domain", DOMAIN, "--interface", "lo",
+                     "--swarm", f"robot-whole-{os.getpid()}", *short],
+                    stdout=log, stderr=subprocess.PIPE, text=True, timeout=120)
+                self.assertEqual(proc.returncode, 0, proc.stderr)
+                names = os.listdir(os.path.join(out, "a"))
+                self.assertNotIn("left-by-the-last-run.txt", names)
+                self.assertIn("robot.json", names)
+            log.write("after\n")
+        with open(os.path.join(out, "a", "robot.log")) as f:
+            text = f.read()
+        self.assertTrue(text.startswith("launched\n"), text)
+        self.assertEqual(text.count("robot a: "), 2, text)
+        self.assertTrue(text.endswith("after\n"), text)
+        self.assertEqual([n for n in os.listdir(out) if ".partial-" in n], [])
+
     def test_sigterm_stops_it_with_whole_outputs(self):
         out = os.path.join(self.tmp.name, "stopped")
         proc = subprocess.Popen(
