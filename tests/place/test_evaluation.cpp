@@ -2,11 +2,13 @@
 // LiDAR-Iris authors' published KITTI files on the real files.
 
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <dcl/core/error.hpp>
 #include <dcl/io/pose_file.hpp>
@@ -101,7 +103,8 @@ TEST(PublishedFiles, FlagsAgreeWithGroundTruthAndRecallsMatch) {
 }
 
 TEST(PublishedFiles, MalformedFilesNameTheLine) {
-  const std::string path = ::testing::TempDir() + "/bad_result.txt";
+  const std::string path =
+      ::testing::TempDir() + "/dcl_bad_result_" + std::to_string(::getpid()) + ".txt";
   std::ofstream(path) << "301 1 0.43 0\n302 2 zero 1\n";
   try {
     readPublishedMatches(path);
@@ -114,6 +117,7 @@ TEST(PublishedFiles, MalformedFilesNameTheLine) {
   std::ofstream(path) << "3 1 0.43 2\n";
   EXPECT_THROW(readPublishedMatches(path), core::FileError);
   EXPECT_THROW(readLoopGroundTruth(path + ".missing"), core::FileError);
+  std::remove(path.c_str());
 }
 
 }  // namespace

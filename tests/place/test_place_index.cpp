@@ -9,9 +9,12 @@
 #include <memory>
 #include <random>
 #include <span>
+#include <string>
+#include <system_error>
 #include <vector>
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <dcl/core/error.hpp>
 #include <dcl/place/lidar_iris.hpp>
@@ -212,7 +215,8 @@ class RealIndex : public ::testing::Test {
     iris_ = std::make_shared<LidarIris>();
     for (int frame : {0, 1, 94, 95, 198, 199})
       kitti_[frame] = iris_->describe(test::kittiScan(frame));
-    const auto folder = std::filesystem::path(::testing::TempDir()) / "dcl_place_index_demo";
+    const auto folder = std::filesystem::path(::testing::TempDir()) /
+                        ("dcl_place_index_demo_" + std::to_string(::getpid()));
     sim::PresetOptions options;
     options.sensor = "hdl64";
     const io::DatasetSpec spec =
@@ -220,6 +224,8 @@ class RealIndex : public ::testing::Test {
     const sim::SimWorld world(spec);
     for (std::size_t i = 0; i < 400; i += 10)
       simulated_.push_back(iris_->describe(world.scan(0, i)));
+    std::error_code ec;
+    std::filesystem::remove_all(folder, ec);
   }
   static void TearDownTestSuite() {
     iris_.reset();

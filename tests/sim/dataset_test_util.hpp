@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <string>
+#include <system_error>
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -16,12 +17,26 @@
 
 namespace dcl::sim::test {
 
-/// A fresh scratch folder named after the running test (per process: ctest runs in parallel).
+/// This process's scratch folder (per process: ctest runs tests in parallel),
+/// removed with everything in it when the test program ends.
+inline const std::filesystem::path& scratchRoot() {
+  struct Root {
+    std::filesystem::path path =
+        std::filesystem::path(::testing::TempDir()) / ("dcl_sim_" + std::to_string(::getpid()));
+    ~Root() {
+      std::error_code ec;
+      std::filesystem::remove_all(path, ec);
+    }
+  };
+  static const Root root;
+  return root.path;
+}
+
+/// A fresh scratch folder named after the running test.
 inline std::filesystem::path freshDir(const std::string& suffix = "") {
   const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-  const auto dir = std::filesystem::path(::testing::TempDir()) /
-                   ("dcl_sim_" + std::to_string(::getpid())) /
-                   (std::string(info->test_suite_name()) + "_" + info->name() + suffix);
+  const auto dir =
+      scratchRoot() / (std::string(info->test_suite_name()) + "_" + info->name() + suffix);
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;
