@@ -16,6 +16,7 @@
 #include <dcl/core/error.hpp>
 #include <dcl/io/bag_writer.hpp>
 #include <dcl/io/file.hpp>
+#include <dcl/io/point_cloud2.hpp>
 
 namespace dcl::io {
 
@@ -196,53 +197,26 @@ ros::Time rosTime(double stamp) {
   return {sec, nsec};
 }
 
-/// The point layout written: x y z intensity float32, ring uint16 (+2 bytes pad), time float32.
-struct CloudField {
-  const char* name;
-  std::uint32_t offset;
-  std::uint8_t datatype;  // sensor_msgs/PointField constants
-};
-constexpr std::uint8_t kUint16 = 4;
-constexpr std::uint8_t kFloat32 = 7;
-constexpr std::array<CloudField, 6> kCloudFields = {{{"x", 0, kFloat32},
-                                                     {"y", 4, kFloat32},
-                                                     {"z", 8, kFloat32},
-                                                     {"intensity", 12, kFloat32},
-                                                     {"ring", 16, kUint16},
-                                                     {"time", 20, kFloat32}}};
-constexpr std::uint32_t kPointStep = 24;
-
-void putPoint(std::uint8_t* record, const core::PointCloud& cloud, std::size_t i) {
-  const Eigen::Vector3f& p = cloud.points[i];
-  const float values[4] = {p.x(), p.y(), p.z(), cloud.hasIntensity() ? cloud.intensity[i] : 0.0f};
-  const std::uint16_t ring = cloud.hasRing() ? cloud.ring[i] : 0;
-  const float time = cloud.hasTime() ? cloud.time[i] : 0.0f;
-  std::memcpy(record, values, sizeof(values));
-  std::memcpy(record + 16, &ring, sizeof(ring));
-  std::memcpy(record + 20, &time, sizeof(time));
-}
-
 RawMessage cloudMessage(std::uint32_t seq, const ros::Time& stamp, const core::PointCloud& cloud,
                         const std::string& frame_id) {
+  const PointCloud2Data points = encodePointCloud2(cloud);
   Serialiser s;
   const auto n = static_cast<std::uint32_t>(cloud.size());
   s.putHeader(seq, stamp, frame_id);
   s.put(std::uint32_t{1});  // height: unorganised
   s.put(n);                 // width
-  s.put(static_cast<std::uint32_t>(kCloudFields.size()));
-  for (const auto& f : kCloudFields) {
+  s.put(static_cast<std::uint32_t>(points.fields.size()));
+  for (const auto& f : points.fields) {
     s.putString(f.name);
     s.put(f.offset);
     s.put(f.datatype);
-    s.put(std::uint32_t{1});  // count
+    s.put(f.count);
   }
   s.put(std::uint8_t{0});  // is_bigendian
-  s.put(kPointStep);
-  s.put(n * kPointStep);  // row_step
-  s.put(n * kPointStep);  // data length
-  const std::size_t at = s.bytes.size();
-  s.bytes.resize(at + std::size_t{n} * kPointStep, 0);
-  for (std::size_t i = 0; i < n; ++i) putPoint(s.bytes.data() + at + i * kPointStep, cloud, i);
+  s.put(points.point_step);
+  s.put(n * points.point_step);  // row_step
+  s.put(static_cast<std::uint32_t>(points.data.size()));
+  s.bytes.insert(s.bytes.end(), points.data.begin(), points.data.end());
   s.put(std::uint8_t{1});  // is_dense: every point is finite
   return {&kCloudType, std::move(s.bytes)};
 }

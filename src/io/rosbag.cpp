@@ -11,6 +11,7 @@
 
 #include <dcl/core/error.hpp>
 #include <dcl/io/file.hpp>
+#include <dcl/io/point_cloud2.hpp>
 #include <dcl/io/rosbag.hpp>
 
 #include "bag_file.hpp"
@@ -19,10 +20,6 @@
 namespace dcl::io {
 
 namespace {
-
-using detail::PointLayout;
-using detail::ScalarKind;
-using detail::ScalarType;
 
 /// A message type this file decodes, with the md5sum of its definition.
 struct KnownType {
@@ -124,33 +121,21 @@ double readHeaderStamp(ByteReader& in) {
   return secs + nsecs * 1e-9;
 }
 
-struct RosField {
-  std::string name;
-  std::uint32_t offset = 0;
-  std::uint8_t datatype = 0;
-};
-
 struct RosCloud {
   double stamp = 0.0;
-  std::uint32_t height = 0;
-  std::uint32_t width = 0;
-  std::vector<RosField> fields;
-  bool is_bigendian = false;
-  std::uint32_t point_step = 0;
-  std::uint32_t row_step = 0;
-  std::span<const char> data;
+  PointCloud2View view;
 };
 
-std::vector<RosField> readFields(ByteReader& in) {
+std::vector<PointField> readFields(ByteReader& in) {
   const auto n = in.read<std::uint32_t>("fields length");
-  std::vector<RosField> fields;
+  std::vector<PointField> fields;
   fields.reserve(std::min<std::size_t>(n, in.remaining() / 13));  // 13 bytes a field at least
   for (std::uint32_t i = 0; i < n; ++i) {
-    RosField f;
+    PointField f;
     f.name = readString(in, "field name");
     f.offset = in.read<std::uint32_t>("field offset");
     f.datatype = in.read<std::uint8_t>("field datatype");
-    in.skip(4, "field count");
+    f.count = in.read<std::uint32_t>("field count");
     fields.push_back(std::move(f));
   }
   return fields;
@@ -159,92 +144,17 @@ std::vector<RosField> readFields(ByteReader& in) {
 RosCloud readCloud(ByteReader& in) {
   RosCloud c;
   c.stamp = readHeaderStamp(in);
-  c.height = in.read<std::uint32_t>("height");
-  c.width = in.read<std::uint32_t>("width");
-  c.fields = readFields(in);
-  c.is_bigendian = in.read<std::uint8_t>("is_bigendian") != 0;
-  c.point_step = in.read<std::uint32_t>("point_step");
-  c.row_step = in.read<std::uint32_t>("row_step");
-  c.data = in.take(in.read<std::uint32_t>("data length"), "data");
+  PointCloud2View& v = c.view;
+  v.height = in.read<std::uint32_t>("height");
+  v.width = in.read<std::uint32_t>("width");
+  v.fields = readFields(in);
+  v.is_bigendian = in.read<std::uint8_t>("is_bigendian") != 0;
+  v.point_step = in.read<std::uint32_t>("point_step");
+  v.row_step = in.read<std::uint32_t>("row_step");
+  const std::span<const char> data = in.take(in.read<std::uint32_t>("data length"), "data");
+  v.data = {reinterpret_cast<const std::uint8_t*>(data.data()), data.size()};
   in.skip(1, "is_dense");
   return c;
-}
-
-// ---- sensor_msgs/PointCloud2 ----
-
-std::optional<ScalarType> rosScalarType(std::uint8_t datatype) {
-  switch (datatype) {  // sensor_msgs/PointField constants
-    case 1:
-      return ScalarType{ScalarKind::kInt, 1};
-    case 2:
-      return ScalarType{ScalarKind::kUint, 1};
-    case 3:
-      return ScalarType{ScalarKind::kInt, 2};
-    case 4:
-      return ScalarType{ScalarKind::kUint, 2};
-    case 5:
-      return ScalarType{ScalarKind::kInt, 4};
-    case 6:
-      return ScalarType{ScalarKind::kUint, 4};
-    case 7:
-      return ScalarType{ScalarKind::kFloat, 4};
-    case 8:
-      return ScalarType{ScalarKind::kFloat, 8};
-    default:
-      return std::nullopt;
-  }
-}
-
-PointLayout cloudLayout(const RosCloud& msg) {
-  PointLayout layout;
-  layout.swap = msg.is_bigendian;
-  for (const auto& f : msg.fields) {
-    const auto channel = detail::channelOf(f.name);
-    if (!channel) continue;
-    const auto type = rosScalarType(f.datatype);
-    if (!type)
-      throw core::Error(fmt::format("field '{}': unknown datatype {}", f.name, f.datatype));
-    if (std::size_t{f.offset} + type->size > msg.point_step) {
-      throw core::Error(fmt::format("field '{}' (offset {}, {} bytes) overruns point_step {}",
-                                    f.name, f.offset, type->size, msg.point_step));
-    }
-    layout.assign(*channel, {f.offset, msg.point_step, *type, f.name});
-  }
-  if (auto missing = layout.missingXyz()) {
-    throw core::Error(fmt::format("no field '{}' among the PointCloud2 fields", *missing));
-  }
-  return layout;
-}
-
-/// Checks width, height, point_step and row_step against the data length.
-void checkCloudSize(const RosCloud& msg) {
-  if (msg.width == 0 || msg.height == 0) return;
-  const std::size_t row_bytes = std::size_t{msg.width} * msg.point_step;  // < 2^64
-  if (msg.row_step < row_bytes) {
-    throw core::Error(fmt::format("row_step {} is less than width {} x point_step {}", msg.row_step,
-                                  msg.width, msg.point_step));
-  }
-  const std::size_t total = std::size_t{msg.row_step} * msg.height;
-  if (msg.data.size() < total) {
-    throw core::Error(fmt::format("data holds {} bytes, height {} x row_step {} needs {}",
-                                  msg.data.size(), msg.height, msg.row_step, total));
-  }
-}
-
-core::PointCloud decodeCloud(const RosCloud& msg, bool drop_nan) {
-  const PointLayout layout = cloudLayout(msg);
-  checkCloudSize(msg);
-  detail::CloudBuilder builder(layout, drop_nan);
-  builder.reserve(std::size_t{msg.width} * msg.height);
-  for (std::size_t r = 0; r < msg.height; ++r) {
-    const char* row = msg.data.data() + r * msg.row_step;
-    for (std::size_t c = 0; c < msg.width; ++c) {
-      if (auto error = builder.add(detail::loadPoint(row, c, layout))) {
-        throw core::Error(fmt::format("point {}: {}", r * msg.width + c, *error));
-      }
-    }
-  }
-  return builder.finish(msg.stamp);
 }
 
 // ---- poses ----
@@ -311,7 +221,7 @@ std::optional<StampedCloud> BagCloudReader::next() {
   try {
     ByteReader in(bytes, "message bytes");
     const RosCloud msg = readCloud(in);
-    return StampedCloud{msg.stamp, decodeCloud(msg, impl_->options.drop_nan)};
+    return StampedCloud{msg.stamp, decodePointCloud2(msg.view, msg.stamp, impl_->options.drop_nan)};
   } catch (const std::exception& e) {
     failMessage(impl_->bag.path(), impl_->topic, i, e.what());
   }
