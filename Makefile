@@ -22,6 +22,7 @@ demo: build
 	$(BUILD_DIR)/apps/dcl-slam demo
 
 test: build
+	@scripts/setup --npm-prefix $(BUILD_DIR)/npm
 	ctest --test-dir $(BUILD_DIR) --output-on-failure -j $(JOBS)
 	scripts/fuzz --seconds 20
 

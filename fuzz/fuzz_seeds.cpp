@@ -24,6 +24,7 @@
 #include <dcl/place/descriptor_codec.hpp>
 #include <dcl/place/lidar_iris.hpp>
 #include <dcl/registration/cloud_codec.hpp>
+#include <dcl/ros/ros2_messages.hpp>
 
 #include "app_config.hpp"
 
@@ -265,6 +266,45 @@ void writeConfigSeeds(const std::filesystem::path& dir) {
   write(dir, "dataset_export.yaml", dcl::io::datasetYaml(spec));
 }
 
+/// The ROS 2 target's seeds: a scan as a driver publishes it, and each message a robot publishes.
+void writeRos2Seeds(const std::filesystem::path& dir, const dcl::core::PointCloud& scan) {
+  using namespace dcl::ros2;
+  dcl::core::PointCloud few;
+  for (std::size_t i = 0; i < scan.size(); i += scan.size() / 64) {
+    few.points.push_back(scan.points[i]);
+    few.intensity.push_back(scan.intensity.empty() ? 0.0F : scan.intensity[i]);
+  }
+  const dcl::io::PointCloud2Data points = dcl::io::encodePointCloud2(few);
+  PointCloud2 cloud;
+  cloud.header = {100.5, "velodyne"};
+  cloud.width = static_cast<std::uint32_t>(few.size());
+  cloud.fields = points.fields;
+  cloud.point_step = points.point_step;
+  cloud.row_step = cloud.width * cloud.point_step;
+  cloud.data = points.data;
+  write(dir, "cloud.cdr", encode(cloud));
+  Odometry odometry;
+  odometry.header = {100.5, "odom"};
+  odometry.child_frame_id = "base_link";
+  odometry.pose.translation() = Eigen::Vector3d(1, 2, 3);
+  write(dir, "odometry.cdr", encode(odometry));
+  Path path;
+  path.header = {100.5, "map"};
+  path.poses = {{{100.0, "map"}, odometry.pose}, {{100.5, "map"}, odometry.pose}};
+  write(dir, "path.cdr", encode(path));
+  TFMessage tf;
+  tf.transforms = {{{100.5, "map"}, "odom", odometry.pose}};
+  write(dir, "tf.cdr", encode(tf));
+  Marker loops;
+  loops.header = {100.5, "map"};
+  loops.ns = "loops";
+  loops.points = {{0, 0, 0}, {1, 1, 0}};
+  loops.colors = {{1, 0, 0, 1}, {0, 1, 0, 1}};
+  MarkerArray markers;
+  markers.markers = {loops};
+  write(dir, "markers.cdr", encode(markers));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -313,6 +353,7 @@ int main(int argc, char** argv) {
                              dir / "bag" / "evo_tf_example.bag",
                              std::filesystem::copy_options::overwrite_existing);
   writeConfigSeeds(dir / "config");
+  writeRos2Seeds(dir / "ros2", scan);
   std::printf("seeds written to %s\n", dir.c_str());
   return 0;
 }

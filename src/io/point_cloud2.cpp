@@ -89,6 +89,7 @@ core::PointCloud decodePointCloud2(const PointCloud2View& msg, double stamp, boo
   const PointLayout layout = cloudLayout(msg);
   checkCloudSize(msg);
   detail::CloudBuilder builder(layout, drop_nan);
+  if (msg.width == 0 || msg.height == 0) return builder.finish(stamp);  // no rows to walk
   builder.reserve(std::size_t{msg.width} * msg.height);
   for (std::size_t r = 0; r < msg.height; ++r) {
     const char* row = reinterpret_cast<const char*>(msg.data.data()) + r * msg.row_step;
