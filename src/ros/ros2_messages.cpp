@@ -17,15 +17,10 @@
 #include <dcl/core/error.hpp>
 #include <dcl/ros/ros2_messages.hpp>
 
-#include "builtin_interfaces.h"
-#include "geometry_msgs.h"
-#include "nav_msgs.h"
-#include "sensor_msgs.h"
-#include "std_msgs.h"
-#include "tf2_msgs.h"
-#include "visualization_msgs.h"
+#include "ros2_wire.hpp"
 
 namespace dcl::ros2 {
+namespace detail {
 
 namespace {
 
@@ -186,119 +181,83 @@ std::string str(const char* s) {
 
 }  // namespace
 
-io::PointCloud2View PointCloud2::view() const {
-  return {height, width, fields, is_bigendian, point_step, row_step, data};
-}
-
-template <>
-std::string_view typeName<PointCloud2>() {
-  return sensor_msgs_msg_dds__PointCloud2__desc.m_typename;
-}
-template <>
-std::string_view typeName<Odometry>() {
-  return nav_msgs_msg_dds__Odometry__desc.m_typename;
-}
-template <>
-std::string_view typeName<Path>() {
-  return nav_msgs_msg_dds__Path__desc.m_typename;
-}
-template <>
-std::string_view typeName<TFMessage>() {
-  return tf2_msgs_msg_dds__TFMessage__desc.m_typename;
-}
-template <>
-std::string_view typeName<MarkerArray>() {
-  return visualization_msgs_msg_dds__MarkerArray__desc.m_typename;
-}
-
 // ---- sensor_msgs/PointCloud2 ----
 
-std::vector<std::uint8_t> encode(const PointCloud2& m) {
-  std::vector<sensor_msgs_msg_dds__PointField_> fields;
-  for (const auto& f : m.fields) fields.push_back({cString(f.name), f.offset, f.datatype, f.count});
-  auto data = m.data;
-  sensor_msgs_msg_dds__PointCloud2_ c{};
-  c.header = toHeader(m.header);
-  c.height = m.height;
-  c.width = m.width;
-  c.fields = sequenceOf<dds_sequence_sensor_msgs_msg_dds__PointField_>(fields);
-  c.is_bigendian = m.is_bigendian;
-  c.point_step = m.point_step;
-  c.row_step = m.row_step;
-  c.data = sequenceOf<dds_sequence_uint8>(data);
-  c.is_dense = m.is_dense;
-  return writeCdr(&c, sensor_msgs_msg_dds__PointCloud2__desc);
+Wire<PointCloud2>::Out::Out(const PointCloud2& m) {
+  for (const auto& f : m.fields)
+    fields_.push_back({cString(f.name), f.offset, f.datatype, f.count});
+  c_.header = toHeader(m.header);
+  c_.height = m.height;
+  c_.width = m.width;
+  c_.fields = sequenceOf<dds_sequence_sensor_msgs_msg_dds__PointField_>(fields_);
+  c_.is_bigendian = m.is_bigendian;
+  c_.point_step = m.point_step;
+  c_.row_step = m.row_step;
+  // The points are read where they are, not copied (the writers only read).
+  c_.data._maximum = c_.data._length = static_cast<std::uint32_t>(m.data.size());
+  c_.data._buffer = const_cast<std::uint8_t*>(m.data.data());
+  c_.data._release = false;
+  c_.is_dense = m.is_dense;
 }
 
-template <>
-PointCloud2 decode<PointCloud2>(std::span<const std::uint8_t> bytes) {
-  const Sample<sensor_msgs_msg_dds__PointCloud2_> c(bytes, sensor_msgs_msg_dds__PointCloud2__desc);
+PointCloud2 Wire<PointCloud2>::in(const C& c) {
   PointCloud2 m;
-  m.header = fromHeader(c->header);
-  m.height = c->height;
-  m.width = c->width;
-  for (std::uint32_t i = 0; i < c->fields._length; ++i) {
-    const auto& f = c->fields._buffer[i];
+  m.header = fromHeader(c.header);
+  m.height = c.height;
+  m.width = c.width;
+  for (std::uint32_t i = 0; i < c.fields._length; ++i) {
+    const auto& f = c.fields._buffer[i];
     m.fields.push_back({str(f.name), f.offset, f.datatype, f.count});
   }
-  m.is_bigendian = c->is_bigendian;
-  m.point_step = c->point_step;
-  m.row_step = c->row_step;
-  m.data.assign(c->data._buffer, c->data._buffer + c->data._length);
-  m.is_dense = c->is_dense;
+  m.is_bigendian = c.is_bigendian;
+  m.point_step = c.point_step;
+  m.row_step = c.row_step;
+  m.data.assign(c.data._buffer, c.data._buffer + c.data._length);
+  m.is_dense = c.is_dense;
   return m;
 }
 
 // ---- nav_msgs/Odometry ----
 
-std::vector<std::uint8_t> encode(const Odometry& m) {
-  nav_msgs_msg_dds__Odometry_ c{};
-  c.header = toHeader(m.header);
-  c.child_frame_id = cString(m.child_frame_id);
-  c.pose.pose = toPose(m.pose);
-  toCovariance(m.pose_covariance, c.pose.covariance);
+Wire<Odometry>::Out::Out(const Odometry& m) {
+  c_.header = toHeader(m.header);
+  c_.child_frame_id = cString(m.child_frame_id);
+  c_.pose.pose = toPose(m.pose);
+  toCovariance(m.pose_covariance, c_.pose.covariance);
   const Eigen::Vector3d& v = m.linear_velocity;
   const Eigen::Vector3d& w = m.angular_velocity;
-  c.twist.twist = {{v.x(), v.y(), v.z()}, {w.x(), w.y(), w.z()}};
-  toCovariance(m.twist_covariance, c.twist.covariance);
-  return writeCdr(&c, nav_msgs_msg_dds__Odometry__desc);
+  c_.twist.twist = {{v.x(), v.y(), v.z()}, {w.x(), w.y(), w.z()}};
+  toCovariance(m.twist_covariance, c_.twist.covariance);
 }
 
-template <>
-Odometry decode<Odometry>(std::span<const std::uint8_t> bytes) {
-  const Sample<nav_msgs_msg_dds__Odometry_> c(bytes, nav_msgs_msg_dds__Odometry__desc);
+Odometry Wire<Odometry>::in(const C& c) {
   Odometry m;
-  m.header = fromHeader(c->header);
-  m.child_frame_id = str(c->child_frame_id);
-  m.pose = fromPose(c->pose.pose.position, c->pose.pose.orientation, "nav_msgs/Odometry pose");
-  m.pose_covariance = fromCovariance(c->pose.covariance);
-  const auto& t = c->twist.twist;
+  m.header = fromHeader(c.header);
+  m.child_frame_id = str(c.child_frame_id);
+  m.pose = fromPose(c.pose.pose.position, c.pose.pose.orientation, "nav_msgs/Odometry pose");
+  m.pose_covariance = fromCovariance(c.pose.covariance);
+  const auto& t = c.twist.twist;
   m.linear_velocity = {t.linear.x, t.linear.y, t.linear.z};
   m.angular_velocity = {t.angular.x, t.angular.y, t.angular.z};
-  m.twist_covariance = fromCovariance(c->twist.covariance);
+  m.twist_covariance = fromCovariance(c.twist.covariance);
   return m;
 }
 
 // ---- nav_msgs/Path ----
 
-std::vector<std::uint8_t> encode(const Path& m) {
-  std::vector<geometry_msgs_msg_dds__PoseStamped_> poses;
-  poses.reserve(m.poses.size());
-  for (const auto& p : m.poses) poses.push_back({toHeader(p.header), toPose(p.pose)});
-  nav_msgs_msg_dds__Path_ c{};
-  c.header = toHeader(m.header);
-  c.poses = sequenceOf<dds_sequence_geometry_msgs_msg_dds__PoseStamped_>(poses);
-  return writeCdr(&c, nav_msgs_msg_dds__Path__desc);
+Wire<Path>::Out::Out(const Path& m) {
+  poses_.reserve(m.poses.size());
+  for (const auto& p : m.poses) poses_.push_back({toHeader(p.header), toPose(p.pose)});
+  c_.header = toHeader(m.header);
+  c_.poses = sequenceOf<dds_sequence_geometry_msgs_msg_dds__PoseStamped_>(poses_);
 }
 
-template <>
-Path decode<Path>(std::span<const std::uint8_t> bytes) {
-  const Sample<nav_msgs_msg_dds__Path_> c(bytes, nav_msgs_msg_dds__Path__desc);
+Path Wire<Path>::in(const C& c) {
   Path m;
-  m.header = fromHeader(c->header);
-  m.poses.reserve(c->poses._length);
-  for (std::uint32_t i = 0; i < c->poses._length; ++i) {
-    const auto& p = c->poses._buffer[i];
+  m.header = fromHeader(c.header);
+  m.poses.reserve(c.poses._length);
+  for (std::uint32_t i = 0; i < c.poses._length; ++i) {
+    const auto& p = c.poses._buffer[i];
     m.poses.push_back({fromHeader(p.header), fromPose(p.pose.position, p.pose.orientation,
                                                       fmt::format("nav_msgs/Path pose {}", i))});
   }
@@ -307,27 +266,23 @@ Path decode<Path>(std::span<const std::uint8_t> bytes) {
 
 // ---- tf2_msgs/TFMessage ----
 
-std::vector<std::uint8_t> encode(const TFMessage& m) {
-  std::vector<geometry_msgs_msg_dds__TransformStamped_> transforms;
-  transforms.reserve(m.transforms.size());
+Wire<TFMessage>::Out::Out(const TFMessage& m) {
+  transforms_.reserve(m.transforms.size());
   for (const auto& t : m.transforms) {
     const auto pose = toPose(t.transform);
-    transforms.push_back({toHeader(t.header),
-                          cString(t.child_frame_id),
-                          {{pose.position.x, pose.position.y, pose.position.z}, pose.orientation}});
+    transforms_.push_back(
+        {toHeader(t.header),
+         cString(t.child_frame_id),
+         {{pose.position.x, pose.position.y, pose.position.z}, pose.orientation}});
   }
-  tf2_msgs_msg_dds__TFMessage_ c{};
-  c.transforms = sequenceOf<dds_sequence_geometry_msgs_msg_dds__TransformStamped_>(transforms);
-  return writeCdr(&c, tf2_msgs_msg_dds__TFMessage__desc);
+  c_.transforms = sequenceOf<dds_sequence_geometry_msgs_msg_dds__TransformStamped_>(transforms_);
 }
 
-template <>
-TFMessage decode<TFMessage>(std::span<const std::uint8_t> bytes) {
-  const Sample<tf2_msgs_msg_dds__TFMessage_> c(bytes, tf2_msgs_msg_dds__TFMessage__desc);
+TFMessage Wire<TFMessage>::in(const C& c) {
   TFMessage m;
-  m.transforms.reserve(c->transforms._length);
-  for (std::uint32_t i = 0; i < c->transforms._length; ++i) {
-    const auto& t = c->transforms._buffer[i];
+  m.transforms.reserve(c.transforms._length);
+  for (std::uint32_t i = 0; i < c.transforms._length; ++i) {
+    const auto& t = c.transforms._buffer[i];
     const geometry_msgs_msg_dds__Point_ at{t.transform.translation.x, t.transform.translation.y,
                                            t.transform.translation.z};
     m.transforms.push_back(
@@ -339,16 +294,14 @@ TFMessage decode<TFMessage>(std::span<const std::uint8_t> bytes) {
 
 // ---- visualization_msgs/MarkerArray ----
 
-std::vector<std::uint8_t> encode(const MarkerArray& m) {
+Wire<MarkerArray>::Out::Out(const MarkerArray& m)
+    : points_(m.markers.size()), colors_(m.markers.size()), markers_(m.markers.size()) {
   static const std::string kEmpty;
-  std::vector<std::vector<geometry_msgs_msg_dds__Point_>> points(m.markers.size());
-  std::vector<std::vector<std_msgs_msg_dds__ColorRGBA_>> colors(m.markers.size());
-  std::vector<visualization_msgs_msg_dds__Marker_> markers(m.markers.size());
   for (std::size_t i = 0; i < m.markers.size(); ++i) {
     const Marker& k = m.markers[i];
-    for (const auto& p : k.points) points[i].push_back({p.x(), p.y(), p.z()});
-    for (const auto& c : k.colors) colors[i].push_back({c.r, c.g, c.b, c.a});
-    auto& c = markers[i];  // zeroed: empty texture, UV and mesh fields
+    for (const auto& p : k.points) points_[i].push_back({p.x(), p.y(), p.z()});
+    for (const auto& c : k.colors) colors_[i].push_back({c.r, c.g, c.b, c.a});
+    auto& c = markers_[i];  // zeroed: empty texture, UV and mesh fields
     c.header = toHeader(k.header);
     c.ns = cString(k.ns);
     c.id = k.id;
@@ -360,8 +313,8 @@ std::vector<std::uint8_t> encode(const MarkerArray& m) {
     const auto lifetime = toTime(k.lifetime, "visualization_msgs/Marker lifetime");
     c.lifetime = {lifetime.sec, lifetime.nanosec};
     c.frame_locked = k.frame_locked;
-    c.points = sequenceOf<dds_sequence_geometry_msgs_msg_dds__Point_>(points[i]);
-    c.colors = sequenceOf<dds_sequence_std_msgs_msg_dds__ColorRGBA_>(colors[i]);
+    c.points = sequenceOf<dds_sequence_geometry_msgs_msg_dds__Point_>(points_[i]);
+    c.colors = sequenceOf<dds_sequence_std_msgs_msg_dds__ColorRGBA_>(colors_[i]);
     c.texture_resource = cString(kEmpty);
     c.texture.header.frame_id = cString(kEmpty);
     c.texture.format = cString(kEmpty);
@@ -369,18 +322,13 @@ std::vector<std::uint8_t> encode(const MarkerArray& m) {
     c.mesh_resource = cString(kEmpty);
     c.mesh_file.filename = cString(kEmpty);
   }
-  visualization_msgs_msg_dds__MarkerArray_ c{};
-  c.markers = sequenceOf<dds_sequence_visualization_msgs_msg_dds__Marker_>(markers);
-  return writeCdr(&c, visualization_msgs_msg_dds__MarkerArray__desc);
+  c_.markers = sequenceOf<dds_sequence_visualization_msgs_msg_dds__Marker_>(markers_);
 }
 
-template <>
-MarkerArray decode<MarkerArray>(std::span<const std::uint8_t> bytes) {
-  const Sample<visualization_msgs_msg_dds__MarkerArray_> c(
-      bytes, visualization_msgs_msg_dds__MarkerArray__desc);
+MarkerArray Wire<MarkerArray>::in(const C& c) {
   MarkerArray m;
-  for (std::uint32_t i = 0; i < c->markers._length; ++i) {
-    const auto& k = c->markers._buffer[i];
+  for (std::uint32_t i = 0; i < c.markers._length; ++i) {
+    const auto& k = c.markers._buffer[i];
     Marker out;
     out.header = fromHeader(k.header);
     out.ns = str(k.ns);
@@ -407,5 +355,39 @@ MarkerArray decode<MarkerArray>(std::span<const std::uint8_t> bytes) {
   }
   return m;
 }
+
+}  // namespace detail
+
+// ---- bytes ----
+
+io::PointCloud2View PointCloud2::view() const {
+  return {height, width, fields, is_bigendian, point_step, row_step, data};
+}
+
+template <class M>
+std::string_view typeName() {
+  return detail::Wire<M>::descriptor().m_typename;
+}
+
+template <class M>
+M decode(std::span<const std::uint8_t> bytes) {
+  using W = detail::Wire<M>;
+  const detail::Sample<typename W::C> c(bytes, W::descriptor());
+  return W::in(*c);
+}
+
+#define DCL_ROS2_MESSAGE(M)                                            \
+  template std::string_view typeName<M>();                             \
+  template M decode<M>(std::span<const std::uint8_t>);                 \
+  std::vector<std::uint8_t> encode(const M& message) {                 \
+    const detail::Wire<M>::Out out(message);                           \
+    return detail::writeCdr(out.get(), detail::Wire<M>::descriptor()); \
+  }
+DCL_ROS2_MESSAGE(PointCloud2)
+DCL_ROS2_MESSAGE(Odometry)
+DCL_ROS2_MESSAGE(Path)
+DCL_ROS2_MESSAGE(TFMessage)
+DCL_ROS2_MESSAGE(MarkerArray)
+#undef DCL_ROS2_MESSAGE
 
 }  // namespace dcl::ros2
