@@ -11,6 +11,7 @@
 
 #include <dds/dds.h>
 
+#include <dcl/comm/dds_domain.hpp>
 #include <dcl/comm/dds_transport.hpp>
 #include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
@@ -43,166 +44,16 @@ std::size_t index(Qos qos) {
   return qos == Qos::reliable ? 0 : 1;
 }
 
-/// Cyclone's own log lines, which it writes to stderr by default: kept
-/// instead, so that a failed call names Cyclone's reason in our one error
-/// line, and passed to our log at debug level.
-class CycloneLog {
- public:
-  /// Installs the sinks; call before the first DDS call.
-  static CycloneLog& instance() {
-    static CycloneLog log;
-    return log;
-  }
-
-  /// What Cyclone logged since the last take, on one line.
-  std::string take() {
-    const std::lock_guard lock(mutex_);
-    return std::exchange(lines_, {});
-  }
-
- private:
-  CycloneLog() {
-    dds_set_log_sink(&CycloneLog::onLog, this);
-    dds_set_trace_sink(&CycloneLog::onTrace, nullptr);
-  }
-
-  static void onLog(void* self, const dds_log_data_t* data) {
-    auto& log = *static_cast<CycloneLog*>(self);
-    std::string_view text(data->message, data->size);
-    while (!text.empty() && (text.back() == '\n' || text.back() == ' ')) text.remove_suffix(1);
-    spdlog::debug("Cyclone DDS: {}", text);
-    const std::lock_guard lock(log.mutex_);
-    if (log.lines_.size() < kMaxKept)
-      log.lines_.append(log.lines_.empty() ? "" : "; ").append(text);
-  }
-  static void onTrace(void*, const dds_log_data_t*) {}
-
-  static constexpr std::size_t kMaxKept = 1000;
-  std::mutex mutex_;
-  std::string lines_;
-};
-
-[[noreturn]] void failCall(const std::string& call, dds_return_t rc) {
-  const std::string cyclone = CycloneLog::instance().take();
-  throw core::Error("DDS: " + call + " failed: " + dds_strretcode(rc) +
-                    (cyclone.empty() ? "" : " (Cyclone DDS: " + cyclone + ")"));
-}
-
-/// Returns `entity`, or throws naming `call` when it is an error code.
-dds_entity_t checked(dds_entity_t entity, const std::string& call) {
-  if (entity < 0) failCall(call, entity);
-  return entity;
-}
-
-/// Cyclone's configuration for one interface with multicast discovery on it
-/// (multicast is off by default on loopback, and discovery needs it).
-std::string interfaceXml(const std::string& interface) {
-  return "<CycloneDDS><Domain><General><Interfaces><NetworkInterface name=\"" + interface +
-         "\" multicast=\"true\"/></Interfaces><AllowMulticast>true</AllowMulticast></General>"
-         "<Internal><MaxSampleSize>" +
-         std::to_string(kMaxSampleBytes) + "B</MaxSampleSize></Internal></Domain></CycloneDDS>";
-}
-
-/// The DDS domains this process has joined. A domain created with an explicit
-/// configuration lives until it is deleted, and deleting it deletes every
-/// participant in it, so several transports of one process (tests, a swarm
-/// in one process) share it and the last one to leave deletes it.
-class DomainRegistry {
- public:
-  static DomainRegistry& instance() {
-    static DomainRegistry registry;
-    return registry;
-  }
-
-  void acquire(std::uint32_t domain, const std::string& interface) {
-    CycloneLog::instance().take();  // sinks in place, and nothing stale in them
-    const std::lock_guard lock(mutex_);
-    auto it = domains_.find(domain);
-    if (it == domains_.end()) {
-      dds_entity_t handle = 0;  // 0: created with the first participant, deleted with the last
-      if (!interface.empty()) {
-        // The user's configuration (CYCLONEDDS_URI) first, ours after it: a
-        // domain made with a configuration of its own would ignore theirs.
-        const char* user = std::getenv("CYCLONEDDS_URI");
-        const std::string xml = (user != nullptr && *user != '\0' ? std::string(user) + "," : "") +
-                                interfaceXml(interface);
-        handle = checked(dds_create_domain(domain, xml.c_str()),
-                         "dds_create_domain(domain " + std::to_string(domain) + ", interface '" +
-                             interface + "')");
-      }
-      it = domains_.emplace(domain, Entry{handle, interface, 0}).first;
-    } else if (!interface.empty() && interface != it->second.interface) {
-      throw core::Error("dds config: field 'interface' is '" + interface + "' but domain " +
-                        std::to_string(domain) + " is already open in this process with " +
-                        (it->second.interface.empty() ? std::string("the default interfaces")
-                                                      : "'" + it->second.interface + "'"));
-    }
-    ++it->second.users;
-  }
-
-  void release(std::uint32_t domain) {
-    const std::lock_guard lock(mutex_);
-    const auto it = domains_.find(domain);
-    if (it == domains_.end() || --it->second.users > 0) return;
-    if (it->second.handle > 0) dds_delete(it->second.handle);
-    domains_.erase(it);
-  }
-
- private:
-  struct Entry {
-    dds_entity_t handle = 0;
-    std::string interface;
-    int users = 0;
-  };
-  std::mutex mutex_;
-  std::map<std::uint32_t, Entry> domains_;
-};
-
-/// This transport's share of its domain.
-class DomainLease {
- public:
-  DomainLease(std::uint32_t domain, const std::string& interface) : domain_(domain) {
-    DomainRegistry::instance().acquire(domain, interface);
-  }
-  ~DomainLease() { DomainRegistry::instance().release(domain_); }
-  DomainLease(const DomainLease&) = delete;
-  DomainLease& operator=(const DomainLease&) = delete;
-
- private:
-  std::uint32_t domain_;
-};
-
-/// A DDS participant; deleting it deletes everything created under it.
-class Participant {
- public:
-  explicit Participant(std::uint32_t domain)
-      : handle_(checked(dds_create_participant(domain, nullptr, nullptr),
-                        "dds_create_participant(domain " + std::to_string(domain) + ")")) {}
-  ~Participant() { dds_delete(handle_); }
-  Participant(const Participant&) = delete;
-  Participant& operator=(const Participant&) = delete;
-
-  [[nodiscard]] dds_entity_t handle() const { return handle_; }
-
- private:
-  dds_entity_t handle_;
-};
-
-struct QosDeleter {
-  void operator()(dds_qos_t* qos) const { dds_delete_qos(qos); }
-};
-using QosPtr = std::unique_ptr<dds_qos_t, QosDeleter>;
-
-QosPtr partitionQos(const std::string& swarm) {
-  QosPtr qos(dds_create_qos());
+DdsQos partitionQos(const std::string& swarm) {
+  DdsQos qos(dds_create_qos());
   dds_qset_partition1(qos.get(), swarm.c_str());
   return qos;
 }
 
 /// Reader and writer QoS: the topic's reliability, KEEP_LAST(history), and
 /// nothing from this participant (a robot does not hear itself).
-QosPtr endpointQos(Qos qos, std::uint32_t history) {
-  QosPtr q(dds_create_qos());
+DdsQos endpointQos(Qos qos, std::uint32_t history) {
+  DdsQos q(dds_create_qos());
   if (qos == Qos::reliable) {
     dds_qset_reliability(q.get(), DDS_RELIABILITY_RELIABLE, kMaxWriteBlocking);
   } else {
@@ -226,7 +77,7 @@ class Loan {
   /// Takes up to kTakeBatch samples; returns how many.
   std::int32_t take() {
     const dds_return_t n = dds_take(reader_, samples.data(), infos.data(), kTakeBatch, kTakeBatch);
-    if (n < 0) failCall("dds_take", n);
+    if (n < 0) ddsFail("dds_take", n);
     count_ = n;
     return n;
   }
@@ -247,29 +98,31 @@ void validate(const DdsConfig& config) {
 
 struct DdsTransport::Impl {
   Impl(core::RobotId robot, const DdsConfig& config)
-      : self(robot), lease(config.domain, config.interface), participant(config.domain) {
+      : self(robot),
+        lease(config.domain, config.interface, kMaxSampleBytes),
+        participant(config.domain) {
     const dds_entity_t pp = participant.handle();
-    const QosPtr partition = partitionQos(config.swarm);
+    const DdsQos partition = partitionQos(config.swarm);
     const dds_entity_t publisher =
-        checked(dds_create_publisher(pp, partition.get(), nullptr), "dds_create_publisher");
+        ddsChecked(dds_create_publisher(pp, partition.get(), nullptr), "dds_create_publisher");
     const dds_entity_t subscriber =
-        checked(dds_create_subscriber(pp, partition.get(), nullptr), "dds_create_subscriber");
-    waitset = checked(dds_create_waitset(pp), "dds_create_waitset");
+        ddsChecked(dds_create_subscriber(pp, partition.get(), nullptr), "dds_create_subscriber");
+    waitset = ddsChecked(dds_create_waitset(pp), "dds_create_waitset");
     for (const Qos qos : {Qos::reliable, Qos::best_effort}) {
       const std::size_t i = index(qos);
       const std::string name = kTopicNames[i];
       const dds_entity_t topic =
-          checked(dds_create_topic(pp, &dcl_dds_Envelope_desc, name.c_str(), nullptr, nullptr),
-                  "dds_create_topic(" + name + ")");
-      const QosPtr endpoint = endpointQos(qos, config.history);
-      writers[i] = checked(dds_create_writer(publisher, topic, endpoint.get(), nullptr),
-                           "dds_create_writer(" + name + ")");
-      readers[i] = checked(dds_create_reader(subscriber, topic, endpoint.get(), nullptr),
-                           "dds_create_reader(" + name + ")");
-      const dds_entity_t condition = checked(dds_create_readcondition(readers[i], DDS_ANY_STATE),
-                                             "dds_create_readcondition(" + name + ")");
+          ddsChecked(dds_create_topic(pp, &dcl_dds_Envelope_desc, name.c_str(), nullptr, nullptr),
+                     "dds_create_topic(" + name + ")");
+      const DdsQos endpoint = endpointQos(qos, config.history);
+      writers[i] = ddsChecked(dds_create_writer(publisher, topic, endpoint.get(), nullptr),
+                              "dds_create_writer(" + name + ")");
+      readers[i] = ddsChecked(dds_create_reader(subscriber, topic, endpoint.get(), nullptr),
+                              "dds_create_reader(" + name + ")");
+      const dds_entity_t condition = ddsChecked(dds_create_readcondition(readers[i], DDS_ANY_STATE),
+                                                "dds_create_readcondition(" + name + ")");
       const dds_return_t rc = dds_waitset_attach(waitset, condition, condition);
-      if (rc < 0) failCall("dds_waitset_attach(" + name + ")", rc);
+      if (rc < 0) ddsFail("dds_waitset_attach(" + name + ")", rc);
     }
   }
 
@@ -312,8 +165,8 @@ struct DdsTransport::Impl {
   core::RobotId self;
   // Destroyed in reverse order: the participant (and all under it) before
   // this transport's share of the domain is given back.
-  DomainLease lease;
-  Participant participant;
+  DdsDomainLease lease;
+  DdsParticipant participant;
   dds_entity_t waitset = 0;
   std::array<dds_entity_t, 2> writers{};
   std::array<dds_entity_t, 2> readers{};
@@ -353,7 +206,7 @@ std::vector<Datagram> DdsTransport::receive() {
 bool DdsTransport::wait(std::chrono::milliseconds timeout) {
   const dds_duration_t relative = DDS_MSECS(std::max<std::int64_t>(timeout.count(), 0));
   const dds_return_t rc = dds_waitset_wait(impl_->waitset, nullptr, 0, relative);
-  if (rc < 0) failCall("dds_waitset_wait", rc);
+  if (rc < 0) ddsFail("dds_waitset_wait", rc);
   return rc > 0;
 }
 

@@ -1,0 +1,147 @@
+// The ROS 2 node on DDS: two nodes of this process on loopback, in a domain of
+// their own (170), exchange each kind of message with ROS 2's QoS profiles.
+#include <chrono>
+#include <cmath>
+#include <functional>
+#include <limits>
+#include <optional>
+#include <string>
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <dcl/core/error.hpp>
+#include <dcl/core/se3.hpp>
+#include <dcl/io/point_cloud2.hpp>
+#include <dcl/ros/ros2_node.hpp>
+
+#include "../common/kitti_test_data.hpp"
+
+namespace dcl::ros2 {
+namespace {
+
+using namespace std::chrono_literals;
+
+NodeConfig loopback() {
+  NodeConfig config;
+  config.domain = 170;
+  config.interface = "lo";
+  return config;
+}
+
+/// A topic of this test process alone (ctest runs test processes in parallel).
+std::string topic(const std::string& name) {
+  return "/dcl_test_" + std::to_string(::getpid()) + "/" + name;
+}
+
+/// Spins `receiver` (publishing with `publish` every 50 ms) until `done` or 20 s.
+bool exchange(Node& receiver, const std::function<void()>& publish,
+              const std::function<bool()>& done) {
+  const auto deadline = std::chrono::steady_clock::now() + 20s;
+  while (std::chrono::steady_clock::now() < deadline) {
+    publish();
+    receiver.spin(50ms);
+    if (done()) return true;
+  }
+  return false;
+}
+
+TEST(Ros2Node, TopicNamesAreRos2s) {
+  EXPECT_EQ(ddsTopicName("/velodyne_points"), "rt/velodyne_points");
+  EXPECT_EQ(ddsTopicName("a/odom"), "rt/a/odom");
+  for (const char* bad : {"", "/", "//odom", "/a//odom", "/odom/", "/2d", "/a b", "/o-dom"}) {
+    EXPECT_THROW(ddsTopicName(bad), core::Error) << bad;
+  }
+}
+
+TEST(Ros2Node, TwoNodesExchangeOdometryAndAFullScan) {
+  Node a(loopback()), b(loopback());
+  Odometry sent;
+  sent.header = {1317384506.25, "odom"};
+  sent.child_frame_id = "base_link";
+  sent.pose = core::makePose(Eigen::Vector3d(1, 2, 3),
+                             Eigen::Quaterniond(Eigen::AngleAxisd(0.5, Eigen::Vector3d::UnitZ())));
+  sent.linear_velocity = {8, 0, 0};
+  a.advertise<Odometry>(topic("odom"), Qos::reliable);
+  std::optional<Odometry> got;
+  b.subscribe<Odometry>(topic("odom"), Qos::reliable, [&](Odometry&& m) { got = std::move(m); });
+  ASSERT_TRUE(exchange(
+      b, [&] { a.publish(topic("odom"), sent); }, [&] { return got.has_value(); }));
+  EXPECT_EQ(got->header.stamp, sent.header.stamp);
+  EXPECT_EQ(got->header.frame_id, "odom");
+  EXPECT_EQ(got->child_frame_id, "base_link");
+  EXPECT_TRUE(got->pose.isApprox(sent.pose, 1e-12));
+  EXPECT_EQ(got->linear_velocity, sent.linear_velocity);
+  EXPECT_GE(a.matched(topic("odom")), 1u);
+
+  // A whole HDL-64 scan (about 2.9 MB) as a driver sends it, best effort.
+  const core::PointCloud scan = test::kittiScan(0);
+  const io::PointCloud2Data points = io::encodePointCloud2(scan);
+  PointCloud2 cloud;
+  cloud.header = {1317384506.5, "velodyne"};
+  cloud.width = static_cast<std::uint32_t>(scan.size());
+  cloud.fields = points.fields;
+  cloud.point_step = points.point_step;
+  cloud.row_step = cloud.width * cloud.point_step;
+  cloud.data = points.data;
+  a.advertise<PointCloud2>(topic("points"), Qos::sensor_data);
+  std::optional<core::PointCloud> received;
+  b.subscribe<PointCloud2>(topic("points"), Qos::sensor_data, [&](PointCloud2&& m) {
+    received = io::decodePointCloud2(m.view(), m.header.stamp, true);
+  });
+  ASSERT_TRUE(exchange(
+      b, [&] { a.publish(topic("points"), cloud); }, [&] { return received.has_value(); }));
+  ASSERT_EQ(received->size(), scan.size());
+  EXPECT_EQ(received->points, scan.points);
+  EXPECT_EQ(received->intensity, scan.intensity);
+}
+
+TEST(Ros2Node, ALatchedPathReachesALateSubscriber) {
+  Node a(loopback());
+  Path path;
+  path.header = {10.0, "map"};
+  for (int i = 0; i < 5; ++i) {
+    path.poses.push_back(
+        {{10.0 + i, "map"},
+         core::makePose(Eigen::Vector3d(i, 0, 0), Eigen::Quaterniond::Identity())});
+  }
+  a.advertise<Path>(topic("path"), Qos::transient_local);
+  a.publish(topic("path"), path);
+  Node b(loopback());  // joins after the path was published, once
+  std::optional<Path> got;
+  b.subscribe<Path>(topic("path"), Qos::transient_local, [&](Path&& m) { got = std::move(m); });
+  ASSERT_TRUE(exchange(
+      b, [] {}, [&] { return got.has_value(); }));
+  ASSERT_EQ(got->poses.size(), 5u);
+  EXPECT_EQ(got->poses[4].header.stamp, 14.0);
+}
+
+TEST(Ros2Node, AMessageItsTypeCannotHoldIsCountedNotDelivered) {
+  Node a(loopback()), b(loopback());
+  TFMessage bad;
+  bad.transforms.resize(1);
+  bad.transforms[0].header = {1.0, "map"};
+  bad.transforms[0].child_frame_id = "odom";
+  bad.transforms[0].transform.translation().x() = std::numeric_limits<double>::quiet_NaN();
+  a.advertise<TFMessage>(topic("tf"), Qos::reliable);
+  std::size_t delivered = 0;
+  b.subscribe<TFMessage>(topic("tf"), Qos::reliable, [&](TFMessage&&) { ++delivered; });
+  ASSERT_TRUE(exchange(
+      b, [&] { a.publish(topic("tf"), bad); }, [&] { return b.refused().count(topic("tf")) > 0; }));
+  EXPECT_EQ(delivered, 0u);
+  EXPECT_NE(b.refused().at(topic("tf")).second.find("not finite"), std::string::npos);
+}
+
+TEST(Ros2Node, MisuseIsAnError) {
+  Node a(loopback());
+  EXPECT_THROW(a.publish(topic("never"), Path{}), core::Error);  // not advertised
+  a.advertise<Path>(topic("p"), Qos::reliable);
+  EXPECT_THROW(a.advertise<Path>(topic("p"), Qos::sensor_data), core::Error);
+  EXPECT_THROW(a.advertise<Odometry>(topic("p"), Qos::reliable), core::Error);
+  NodeConfig far = loopback();
+  far.domain = 400;
+  EXPECT_THROW(Node{far}, core::Error);
+}
+
+}  // namespace
+}  // namespace dcl::ros2
