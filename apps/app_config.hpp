@@ -128,6 +128,48 @@ struct RobotSection {
   }
 };
 
+/// A robot on ROS 2 (`robot --ros2`): where its scans come from and what it
+/// publishes. "{robot}" in a name stands for the robot's name.
+struct Ros2Section {
+  std::uint32_t domain = 0;                          ///< DDS domain (ROS_DOMAIN_ID)
+  std::string interface {};                          ///< network interface ('': default)
+  std::string points = "/points";                    ///< sensor_msgs/PointCloud2 in
+  std::string map_frame = "map";                     ///< the group's frame
+  std::string odom_frame = "{robot}/odom";           ///< the robot's odometry frame
+  std::string base_frame = "{robot}/base_link";      ///< the robot
+  std::string sensor_frame = "{robot}/lidar";        ///< the LiDAR (clouds `play` publishes)
+  std::string odometry_topic = "/{robot}/odometry";  ///< nav_msgs/Odometry out, each keyframe
+  std::string path_topic = "/{robot}/path";          ///< nav_msgs/Path of the keyframes
+  std::string map_topic = "/{robot}/local_map";      ///< sensor_msgs/PointCloud2, latest keyframes
+  std::string loops_topic = "/{robot}/loops";        ///< visualization_msgs/MarkerArray
+  double publish_period = 1.0;                       ///< s between paths, maps and markers
+  int map_keyframes = 30;                            ///< keyframes in the local map
+  double map_voxel = 0.4;                            ///< m, voxel edge of the local map
+
+  template <class Visitor>
+  void visit(Visitor& v) {
+    v.field("domain", domain, "DDS domain of the ROS 2 topics (ROS_DOMAIN_ID)")
+        .atMost(comm::DdsConfig::kMaxDomain);
+    v.field("interface", interface, "network interface with multicast discovery (empty: default)")
+        .rule(interface.size() <= comm::DdsConfig::kMaxInterfaceChars &&
+                  comm::isPlainName(interface, "_-.:"),
+              "must be empty or a network interface name");
+    v.field("points", points, "sensor_msgs/PointCloud2 topic of the robot's LiDAR");
+    v.field("map_frame", map_frame, "frame id of the group's map");
+    v.field("odom_frame", odom_frame, "frame id of the robot's odometry");
+    v.field("base_frame", base_frame, "frame id of the robot");
+    v.field("sensor_frame", sensor_frame, "frame id of the LiDAR (the clouds `play` publishes)");
+    v.field("odometry_topic", odometry_topic, "nav_msgs/Odometry published at each keyframe");
+    v.field("path_topic", path_topic, "nav_msgs/Path of the keyframes in the map frame");
+    v.field("map_topic", map_topic, "sensor_msgs/PointCloud2 of the latest keyframes' points");
+    v.field("loops_topic", loops_topic, "visualization_msgs/MarkerArray of the inter-robot loops");
+    v.field("publish_period", publish_period, "s between paths, maps and loop markers")
+        .within(0.05, 3600.0);
+    v.field("map_keyframes", map_keyframes, "keyframes in the local map").within(1, 1000);
+    v.field("map_voxel", map_voxel, "m, voxel edge of the local map").within(0.05, 10.0);
+  }
+};
+
 /// Everything `dcl-slam` can be configured with.
 struct AppConfig {
   std::string log_level = "info";                 ///< trace | debug | info | warn | error | off
@@ -146,6 +188,7 @@ struct AppConfig {
   comm::DdsConfig dds;                            ///< Cyclone DDS between robot processes
   RobotSection robot;                             ///< a robot node's timers
   swarm::MapConfig map;                           ///< the map of swarm runs
+  Ros2Section ros2;                               ///< a robot on ROS 2
 
   template <class Visitor>
   void visit(Visitor& v) {
@@ -167,6 +210,7 @@ struct AppConfig {
     v.section("dds", dds, "Cyclone DDS between robot processes");
     v.section("robot", robot, "a robot node's optimisation timers");
     v.section("map", map, "the map of swarm runs (map.ply)");
+    v.section("ros2", ros2, "a robot on ROS 2 (robot --ros2): topics, frames, rates");
   }
 };
 

@@ -8,6 +8,7 @@
 // finish, and on while it still optimises with them (--settle), then writes the outputs `dcl-slam
 // run` writes per robot, and robot.json (robot_outputs.hpp).
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <cmath>
 #include <csignal>
@@ -31,7 +32,10 @@
 #include <dcl/core/error.hpp>
 #include <dcl/core/progress.hpp>
 #include <dcl/io/dataset.hpp>
+#include <dcl/io/point_cloud2.hpp>
+#include <dcl/registration/voxel_filter.hpp>
 #include <dcl/robot/robot_node.hpp>
+#include <dcl/ros/ros2_node.hpp>
 #include <dcl/sim/sim_source.hpp>
 
 #include "commands.hpp"
@@ -67,6 +71,11 @@ struct RobotOptions {
   double meter_interval = 1.0;  ///< s of swarm time per traffic bin (the radio section's)
   comm::DdsConfig dds;
   bool json = false;
+  // Live on ROS 2 instead of a dataset:
+  bool ros2 = false;                        ///< scans from a ROS 2 topic
+  std::optional<int> id;                    ///< the robot's id in the swarm (0..254), live only
+  std::optional<std::string> points;        ///< the cloud topic (default: ros2.points)
+  std::optional<std::uint32_t> ros_domain;  ///< default: ros2.domain
 };
 
 // ---- time --------------------------------------------------------------------------
@@ -177,6 +186,41 @@ std::size_t robotIndex(const io::DatasetSpec& spec, const std::string& name) {
       fmt::format("dataset {} has no robot '{}' (robots: {})", spec.folder, name, known));
 }
 
+/// What a robot process writes, from its node and transport: trajectories,
+/// graph, and the report's traffic, counters and loops (the caller adds how
+/// its scans came).
+RobotOutputs nodeOutputs(const robot::RobotNode& node, const MeteredTransport& metered,
+                         const comm::DdsTransport& dds, const RobotOptions& o, double duration) {
+  RobotOutputs out;
+  for (const core::Keyframe& k : node.keyframes()) {
+    out.estimate.push_back(k.stamp, node.estimate(k.id));
+    out.odometry.push_back(k.stamp, k.T_odom_keyframe);
+  }
+  out.graph = node.graph();
+  RobotReport& r = out.report;
+  r.name = o.robot;
+  r.transport = o.transport;
+  r.swarm = o.dds.swarm;
+  r.keyframes = node.keyframes().size();
+  r.duration = duration;
+  r.bytes_sent = metered.sent();
+  r.bytes_received = metered.received();
+  const auto kBps = [&](std::size_t bytes) {
+    return r.duration > 0.0 ? static_cast<double>(bytes) / 1000.0 / r.duration : 0.0;
+  };
+  r.transmit_kBps = kBps(r.bytes_sent);
+  r.receive_kBps = kBps(r.bytes_received);
+  r.failed_writes = dds.failedWrites();
+  r.meter_interval = o.meter_interval;
+  r.sent_over_time = metered.overTime();
+  r.counters = node.counters();
+  for (const robot::InterLoop& loop : node.interLoops())
+    r.inter_loops.push_back({loop.factor.from, loop.factor.to, loop.accepted});
+  r.messenger = messengerJson(node.messenger().stats());
+  if (const std::optional<core::RobotId> frame = node.frame()) r.frame = frame->value();
+  return out;
+}
+
 /// One robot process's life, from joining the swarm to its outputs.
 struct RobotPlayer {
   const RobotOptions& o;
@@ -276,45 +320,245 @@ struct RobotPlayer {
   }
 
   [[nodiscard]] RobotOutputs outputs(bool interrupted) const {
-    RobotOutputs out;
-    const core::RobotId self(static_cast<std::uint8_t>(index));
-    for (const core::Keyframe& k : node.keyframes()) {
-      out.estimate.push_back(k.stamp, node.estimate(k.id));
-      out.odometry.push_back(k.stamp, k.T_odom_keyframe);
-    }
-    out.graph = node.graph();
+    RobotOutputs out = nodeOutputs(node, metered, dds, o, std::max(0.0, now));
     RobotReport& r = out.report;
-    r.name = o.robot;
-    r.robot = self.value();
+    r.robot = static_cast<std::uint8_t>(index);
     r.dataset = o.dataset;
-    r.transport = o.transport;
-    r.swarm = o.dds.swarm;
-    r.incarnation = incarnation;
     r.rate = clock.rate;
     r.epoch = clock.epoch;
     r.frames = next;
     r.frames_planned = frames;
-    r.keyframes = node.keyframes().size();
     r.max_lag = max_lag;
     r.wall_time = unixNow() - joined_at;
-    r.duration = std::max(0.0, now);
     r.interrupted = interrupted;
-    r.bytes_sent = metered.sent();
-    r.bytes_received = metered.received();
-    const auto kBps = [&](std::size_t bytes) {
-      return r.duration > 0.0 ? static_cast<double>(bytes) / 1000.0 / r.duration : 0.0;
-    };
-    r.transmit_kBps = kBps(r.bytes_sent);
-    r.receive_kBps = kBps(r.bytes_received);
-    r.failed_writes = dds.failedWrites();
-    r.meter_interval = o.meter_interval;
-    r.sent_over_time = metered.overTime();
-    r.counters = node.counters();
-    for (const robot::InterLoop& loop : node.interLoops())
-      r.inter_loops.push_back({loop.factor.from, loop.factor.to, loop.accepted});
-    r.messenger = messengerJson(node.messenger().stats());
-    if (const std::optional<core::RobotId> frame = node.frame()) r.frame = frame->value();
+    r.incarnation = incarnation;
     return out;
+  }
+};
+
+// ---- live, on ROS 2 -------------------------------------------------------------------
+
+/// `name` with each "{robot}" replaced by the robot's name.
+std::string named(std::string name, const std::string& robot) {
+  constexpr std::string_view kTag = "{robot}";
+  for (std::size_t at = name.find(kTag); at != std::string::npos; at = name.find(kTag, at)) {
+    name.replace(at, kTag.size(), robot);
+    at += robot.size();
+  }
+  return name;
+}
+
+/// A robot fed by its LiDAR driver over ROS 2, publishing what it estimates
+/// while it runs, with the same swarm traffic as a robot playing a dataset.
+/// Scans that arrive while the front-end is busy are dropped and counted (the
+/// newest waits, never a queue); it runs until SIGINT or SIGTERM.
+struct LiveRobot {
+  const RobotOptions& o;
+  Ros2Section ros;  ///< names resolved for this robot
+  std::uint8_t id;
+  ros2::Node ros_node;
+  std::uint32_t incarnation;
+  comm::DdsTransport dds;
+  MeteredTransport metered;
+  robot::RobotNode node;
+  double joined_at;                                       ///< s since the Unix epoch
+  double now = -std::numeric_limits<double>::infinity();  ///< s since joining
+  std::optional<double> stamp_offset;  ///< s from a scan's ROS stamp to the node's clock
+  std::optional<std::pair<double, core::PointCloud>> waiting;  ///< the newest scan not yet taken
+  std::size_t received = 0;                                    ///< clouds that arrived
+  std::size_t dropped = 0;  ///< of them, replaced by a newer one before the front-end took them
+  std::size_t refused = 0;  ///< of them, unreadable (no x, y, z; sizes that do not fit)
+  std::string last_refusal;
+  std::size_t frames = 0;  ///< scans through the front-end
+  std::size_t published_keyframes = 0;
+  double next_publish = 0.0;
+
+  LiveRobot(const RobotOptions& options, const Ros2Section& section, std::uint8_t robot,
+            const robot::RobotConfig& config)
+      : o(options),
+        ros(resolved(section, options)),
+        id(robot),
+        ros_node(ros2::NodeConfig{ros.domain, ros.interface}),
+        incarnation(clockIncarnation()),
+        dds(core::RobotId(robot), o.dds),
+        metered(dds, o.meter_interval),
+        node(metered, config, incarnation),
+        joined_at(unixNow()) {
+    for (const std::string* topic :
+         {&ros.points, &ros.odometry_topic, &ros.path_topic, &ros.map_topic, &ros.loops_topic}) {
+      (void)ros2::ddsTopicName(*topic);  // a bad name fails here, before any work
+    }
+  }
+
+  static Ros2Section resolved(Ros2Section s, const RobotOptions& o) {
+    if (o.points) s.points = *o.points;
+    if (o.ros_domain) s.domain = *o.ros_domain;
+    if (s.interface.empty()) s.interface = o.dds.interface;  // one network for both, unless told
+    for (std::string* name : {&s.points, &s.map_frame, &s.odom_frame, &s.base_frame,
+                              &s.odometry_topic, &s.path_topic, &s.map_topic, &s.loops_topic}) {
+      *name = named(*name, o.robot);
+    }
+    return s;
+  }
+
+  double look() {
+    now = std::max(now, unixNow() - joined_at);
+    metered.setTime(now);
+    return now;
+  }
+
+  void onCloud(ros2::PointCloud2&& m) {
+    ++received;
+    core::PointCloud cloud;
+    try {
+      cloud = io::decodePointCloud2(m.view(), m.header.stamp, /*drop_nan=*/true);
+    } catch (const core::Error& e) {
+      ++refused;
+      last_refusal = e.what();
+      return;
+    }
+    if (!stamp_offset) stamp_offset = look() - m.header.stamp;
+    if (waiting) ++dropped;
+    waiting.emplace(m.header.stamp + *stamp_offset, std::move(cloud));
+  }
+
+  /// A keyframe's time as its scan was stamped.
+  [[nodiscard]] double rosStamp(double stamp) const { return stamp - stamp_offset.value_or(0.0); }
+
+  void publishKeyframe() {
+    const auto& keyframes = node.keyframes();
+    if (keyframes.size() == published_keyframes) return;
+    published_keyframes = keyframes.size();
+    const core::Keyframe& k = keyframes.back();
+    const Eigen::Isometry3d T_map_base = node.estimate(k.id);
+    const double stamp = rosStamp(k.stamp);
+    ros2::Odometry odometry;
+    odometry.header = {stamp, ros.map_frame};
+    odometry.child_frame_id = ros.base_frame;
+    odometry.pose = T_map_base;
+    odometry.pose_covariance = k.covariance;
+    ros_node.publish(ros.odometry_topic, odometry);
+    ros2::TFMessage tf;
+    tf.transforms.resize(2);
+    tf.transforms[0].header = {stamp, ros.map_frame};
+    tf.transforms[0].child_frame_id = ros.odom_frame;
+    tf.transforms[0].transform = T_map_base * k.T_odom_keyframe.inverse();
+    tf.transforms[1].header = {stamp, ros.odom_frame};
+    tf.transforms[1].child_frame_id = ros.base_frame;
+    tf.transforms[1].transform = k.T_odom_keyframe;
+    ros_node.publish("/tf", tf);
+  }
+
+  void publishMaps() {
+    const auto& keyframes = node.keyframes();
+    if (look() < next_publish || keyframes.empty()) return;
+    next_publish = now + ros.publish_period;
+    const double stamp = rosStamp(keyframes.back().stamp);
+    ros2::Path path;
+    path.header = {stamp, ros.map_frame};
+    for (const core::Keyframe& k : keyframes) {
+      path.poses.push_back({{rosStamp(k.stamp), ros.map_frame}, node.estimate(k.id)});
+    }
+    ros_node.publish(ros.path_topic, path);
+
+    std::vector<Eigen::Vector3f> points;
+    const std::size_t first =
+        keyframes.size() - std::min(keyframes.size(), static_cast<std::size_t>(ros.map_keyframes));
+    for (std::size_t i = first; i < keyframes.size(); ++i) {
+      const Eigen::Isometry3f T = node.estimate(keyframes[i].id).cast<float>();
+      for (const Eigen::Vector3f& p : keyframes[i].cloud.points) points.push_back(T * p);
+    }
+    core::PointCloud map;
+    for (const Eigen::Vector3d& p : registration::voxelDownsample(points, ros.map_voxel)) {
+      map.points.push_back(p.cast<float>());
+    }
+    const io::PointCloud2Data data = io::encodePointCloud2(map);
+    ros2::PointCloud2 cloud;
+    cloud.header = {stamp, ros.map_frame};
+    cloud.width = static_cast<std::uint32_t>(map.size());
+    cloud.fields = data.fields;
+    cloud.point_step = data.point_step;
+    cloud.row_step = cloud.width * cloud.point_step;
+    cloud.data = data.data;
+    ros_node.publish(ros.map_topic, cloud);
+
+    // The accepted inter-robot loops, as lines between the two keyframes.
+    const backend::PoseGraph graph = node.graph();
+    ros2::Marker lines;
+    lines.header = {stamp, ros.map_frame};
+    lines.ns = "inter_robot_loops";
+    lines.type = ros2::Marker::kLineList;
+    lines.scale = {0.3, 0.0, 0.0};
+    lines.color = {1.0F, 0.5F, 0.0F, 1.0F};
+    for (const robot::InterLoop& loop : node.interLoops()) {
+      if (!loop.accepted || !graph.hasNode(loop.factor.from) || !graph.hasNode(loop.factor.to)) {
+        continue;
+      }
+      lines.points.push_back(graph.estimate(loop.factor.from).translation());
+      lines.points.push_back(graph.estimate(loop.factor.to).translation());
+    }
+    ros2::Marker clear;
+    clear.header = lines.header;
+    clear.action = ros2::Marker::kDeleteAll;
+    ros_node.publish(ros.loops_topic, ros2::MarkerArray{{clear, lines}});
+  }
+
+  std::string note() const {
+    return fmt::format("t = {:.0f} s, {} scans in, {} dropped, {} keyframes", now, received,
+                       dropped, node.keyframes().size());
+  }
+
+  [[nodiscard]] RobotOutputs outputs() const {
+    RobotOutputs out = nodeOutputs(node, metered, dds, o, std::max(0.0, now));
+    // Trajectories stamped as the scans were (the driver's clock), not by the node's.
+    for (core::Trajectory* t : {&out.estimate, &out.odometry}) {
+      core::Trajectory stamped;
+      for (std::size_t i = 0; i < t->size(); ++i)
+        stamped.push_back(rosStamp(t->stamp(i)), t->pose(i));
+      *t = std::move(stamped);
+    }
+    RobotReport& r = out.report;
+    r.robot = id;
+    r.dataset = "ROS 2 " + ros.points;
+    r.incarnation = incarnation;
+    r.epoch = joined_at;
+    r.frames = frames;
+    r.frames_planned = received;
+    r.wall_time = unixNow() - joined_at;
+    r.interrupted = true;
+    r.counters["scans_received"] = static_cast<double>(received);
+    r.counters["scans_dropped"] = static_cast<double>(dropped);
+    r.counters["scans_refused"] = static_cast<double>(refused);
+    return out;
+  }
+
+  /// Runs until a signal; returns false (a live robot ends only when told to).
+  bool run() {
+    ros_node.subscribe<ros2::PointCloud2>(ros.points, ros2::Qos::sensor_data,
+                                          [this](ros2::PointCloud2&& m) { onCloud(std::move(m)); });
+    ros_node.advertise<ros2::Odometry>(ros.odometry_topic, ros2::Qos::reliable);
+    ros_node.advertise<ros2::TFMessage>("/tf", ros2::Qos::reliable);
+    ros_node.advertise<ros2::Path>(ros.path_topic, ros2::Qos::transient_local);
+    ros_node.advertise<ros2::PointCloud2>(ros.map_topic, ros2::Qos::transient_local);
+    ros_node.advertise<ros2::MarkerArray>(ros.loops_topic, ros2::Qos::transient_local);
+    fmt::print("robot {}: reading {} on ROS 2 domain {}; publishing {}, {}, {}, {} and /tf\n",
+               o.robot, ros.points, ros.domain, ros.odometry_topic, ros.path_topic, ros.map_topic,
+               ros.loops_topic);
+    std::fflush(stdout);
+    const auto tick = std::chrono::milliseconds(static_cast<std::int64_t>(kTickPeriod * 1000.0));
+    while (stopSignal() == 0) {
+      ros_node.spin(tick);
+      if (waiting) {
+        node.addScan(waiting->first, waiting->second);
+        waiting.reset();
+        ++frames;
+      }
+      node.tick(look());
+      publishKeyframe();
+      publishMaps();
+    }
+    node.stop();
+    return false;
   }
 };
 
@@ -334,8 +578,52 @@ void printSummary(const RobotReport& r, const std::string& folder) {
   fmt::print("outputs in {}\n", folder);
 }
 
+/// A robot on ROS 2: `robot --ros2 --robot NAME --id N`.
+void runLiveRobot(const RobotOptions& o, const AppConfig& config) {
+  if (!o.id) throw core::Error("robot --ros2: give the robot's id in the swarm with --id (0..254)");
+  // The name is a folder of --out and part of topic and frame names.
+  const bool plain = !o.robot.empty() && o.robot.size() <= 64 &&
+                     std::all_of(o.robot.begin(), o.robot.end(), [](char c) {
+                       return std::isalnum(static_cast<unsigned char>(c)) != 0 || c == '_';
+                     });
+  if (!plain) {
+    throw core::Error(
+        fmt::format("--robot '{}': a live robot's name is letters, digits and '_' "
+                    "(it names its folder, topics and frames)",
+                    o.robot));
+  }
+  const StopSignals signals;
+  OutputFolder output(o.out + "/" + o.robot, o.force, {"robot.log"});
+  LiveRobot live(o, config.ros2, static_cast<std::uint8_t>(*o.id), robotConfig(config));
+  live.run();
+  const RobotOutputs outputs = live.outputs();
+  writeRobotOutputs(output.path(), outputs);
+  output.commit();
+  if (o.json)
+    fmt::print("{}\n", toJson(outputs.report).dump(2));
+  else
+    printSummary(outputs.report, output.out());
+  std::fflush(stdout);
+  if (live.refused > 0) {
+    std::fprintf(stderr, "dcl-slam robot %s: %zu clouds on %s were unreadable (the last: %s)\n",
+                 o.robot.c_str(), live.refused, live.ros.points.c_str(), live.last_refusal.c_str());
+  }
+  std::fprintf(stderr, "dcl-slam robot %s: stopped by signal %d; outputs in %s\n", o.robot.c_str(),
+               stopSignal(), output.out().c_str());
+  throw CLI::RuntimeError(128 + stopSignal());
+}
+
 void runRobot(const RobotOptions& o, const AppConfig& config) {
   validate(o);
+  if (o.ros2) {
+    if (!o.dataset.empty()) throw core::Error("robot: --dataset or --ros2, not both");
+    runLiveRobot(o, config);
+    return;
+  }
+  if (o.dataset.empty())
+    throw core::Error("robot: --dataset is required (or --ros2 for a live robot)");
+  if (o.id || o.points || o.ros_domain)
+    throw core::Error("robot: --id, --points and --ros-domain are for a live robot (--ros2)");
   const StopSignals signals;
   io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const std::size_t index = robotIndex(spec, o.robot);
@@ -372,7 +660,7 @@ void addRobotCommand(CLI::App& app, const AppConfig& config) {
       "one robot of a dataset in this process over Cyclone DDS: plays its scans on the swarm "
       "clock ((wall clock - epoch) * rate) with its peers in other processes, then writes its "
       "trajectories, graph and robot.json into OUT/ROBOT");
-  cmd->add_option("--dataset", o->dataset, "dataset folder (dataset.yaml)")->required();
+  cmd->add_option("--dataset", o->dataset, "dataset folder (dataset.yaml); or --ros2");
   cmd->add_option("--robot", o->robot, "the robot's name in the dataset")->required();
   cmd->add_option("--out", o->out, "output folder (the robot writes into OUT/ROBOT)")
       ->capture_default_str();
@@ -402,6 +690,16 @@ void addRobotCommand(CLI::App& app, const AppConfig& config) {
                   "network interface with multicast discovery, e.g. lo (default: dds.interface)");
   cmd->add_flag("--json", o->json, "print robot.json at the end instead of the summary line");
   addForceFlag(*cmd, o->force);
+  cmd->add_flag("--ros2", o->ros2,
+                "live: scans from a ROS 2 topic (the config's ros2 section), estimates published "
+                "on ROS 2 while it runs, until Ctrl-C");
+  cmd->add_option("--id", o->id, "live: the robot's id in the swarm, 0..254, unique")
+      ->check(CLI::Range(0, 254));
+  cmd->add_option("--points", o->points,
+                  "live: sensor_msgs/PointCloud2 topic (default: ros2.points)");
+  cmd->add_option("--ros-domain", o->ros_domain,
+                  "live: DDS domain of the ROS 2 topics, ROS_DOMAIN_ID (default: ros2.domain)")
+      ->check(CLI::Range(0, 232));
   cmd->callback([o, &config] { runRobot(*o, config); });
 }
 

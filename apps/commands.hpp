@@ -65,6 +65,9 @@ void addBenchLoopsCommand(CLI::App& bench, const AppConfig& config);
 /// `robot`: one robot of a dataset in this process over Cyclone DDS (cmd_robot.cpp).
 void addRobotCommand(CLI::App& app, const AppConfig& config);
 
+/// `dcl-slam play`: a dataset robot's scans published on ROS 2 as its LiDAR driver would.
+void addPlayCommand(CLI::App& app, const AppConfig& config);
+
 /// `swarm`: starts one `robot` process per robot of a dataset on this machine,
 /// waits for them and evaluates their outputs together (cmd_swarm.cpp).
 void addSwarmCommand(CLI::App& app, const AppConfig& config);

@@ -130,6 +130,7 @@ int run(int argc, char** argv) {
   dcl::apps::addPingCommand(app, config);
   dcl::apps::addRunCommand(app, config);
   dcl::apps::addRobotCommand(app, config);
+  dcl::apps::addPlayCommand(app, config);
   dcl::apps::addSwarmCommand(app, config);
   auto* bench = app.add_subcommand("bench", "benchmarks of the system's parts");
   bench->require_subcommand(1);

@@ -241,5 +241,66 @@ class Swarm(unittest.TestCase):
         self.assertFalse(os.path.exists(os.path.join(out, "metrics.json")))
 
 
+class Ros2Robot(unittest.TestCase):
+    """dcl-slam robot --ros2: a live robot fed over ROS 2 by `dcl-slam play`,
+    another process publishing a simulated robot's scans as its LiDAR driver
+    would (ROS 2 domain 173, the swarm's 174, on loopback)."""
+
+    SCANS = 200
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.dataset = os.path.join(cls.tmp.name, "ds")
+        run("simulate", "--preset", "demo", "--robots", "1", "--max-scans", str(cls.SCANS),
+            "--out", cls.dataset)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def test_a_live_robot_tracks_the_scans_it_is_sent(self):
+        out = os.path.join(self.tmp.name, "out")
+        topic = f"/dcl_test_{os.getpid()}/points"
+        common = ["--ros-domain", "173", "--interface", "lo", "--points", topic]
+        robot = subprocess.Popen(
+            [DCL_SLAM, "robot", "--ros2", "--robot", "a", "--id", "0", "--out", out,
+             "--domain", "174", "--swarm", f"ros2-test-{os.getpid()}", *common],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.addCleanup(lambda: robot.poll() is None and robot.kill())
+        _, played, _ = run("play", "--dataset", self.dataset, "--robot", "a", "--rate", "2",
+                           *common, timeout=120)
+        # "scan i stamped START + (t_i - FIRST) / RATE"
+        words = played.strip().splitlines()[-1].replace("(", " ").replace(")", " ").split()
+        start, first = float(words[words.index("stamped") + 1]), float(words[words.index("-") + 1])
+        self.assertIn("1 subscriber", played)
+        time.sleep(2)
+        robot.send_signal(signal.SIGINT)
+        _, err = robot.communicate(timeout=60)
+        self.assertEqual(robot.returncode, 128 + signal.SIGINT, err)
+        self.assertIn("stopped by signal", err)
+        with open(os.path.join(out, "a", "robot.json")) as f:
+            report = json.load(f)
+        counters = report["counters"]
+        # Best effort on loopback: a scan may be lost, none may be unreadable,
+        # and every scan the robot took went through the front-end.
+        self.assertGreaterEqual(counters["scans_received"], self.SCANS - 5)
+        self.assertEqual(counters["scans_refused"], 0)
+        self.assertEqual(report["frames"] + counters["scans_dropped"], counters["scans_received"])
+        self.assertGreater(report["keyframes"], 10)
+        # Its trajectory, stamped as the scans were, back on the dataset's clock
+        # and against the ground truth.
+        mapped = os.path.join(self.tmp.name, "mapped.tum")
+        rows = tum_rows(os.path.join(out, "a", "trajectory.tum"))
+        self.assertEqual(len(rows), report["keyframes"])
+        with open(mapped, "w") as f:
+            for row in rows:
+                t, *pose = row.split()
+                f.write(f"{first + (float(t) - start) * 2:.6f} {' '.join(pose)}\n")
+        _, ate, _ = run("eval", "ate", "--gt", os.path.join(self.dataset, "ground_truth", "a.tum"),
+                        "--est", mapped, "--format", "tum", "--align", "se3", "--json")
+        self.assertLess(json.loads(ate)["translation_m"]["rmse"], 0.3)
+
+
 if __name__ == "__main__":
     unittest.main()

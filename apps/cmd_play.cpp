@@ -1,0 +1,117 @@
+// `dcl-slam play`: one robot's scans of a dataset published on a ROS 2 topic
+// (sensor_msgs/PointCloud2, best effort) in real time, or faster with --rate,
+// stamped with the wall clock as a LiDAR driver stamps them: a robot's
+// stream to try `robot --ros2`, RViz or Foxglove with, without a robot.
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <limits>
+#include <string>
+#include <thread>
+
+#include <fmt/format.h>
+
+#include <dcl/core/error.hpp>
+#include <dcl/io/dataset.hpp>
+#include <dcl/io/point_cloud2.hpp>
+#include <dcl/ros/ros2_node.hpp>
+#include <dcl/sim/sim_source.hpp>
+
+#include "commands.hpp"
+#include "option_checks.hpp"
+#include "process.hpp"
+
+namespace dcl::apps {
+namespace {
+
+struct PlayOptions {
+  std::string dataset;
+  std::string robot;
+  std::optional<std::string> points;        ///< default: ros2.points
+  std::optional<std::uint32_t> ros_domain;  ///< default: ros2.domain
+  std::optional<std::string> interface;     ///< default: ros2.interface
+  double rate = 1.0;                        ///< dataset seconds per wall second
+  std::size_t max_frames = 0;               ///< 0: all
+  double wait = 10.0;                       ///< s to wait for a subscriber before the first scan
+};
+
+std::string named(std::string name, const std::string& robot) {
+  constexpr std::string_view kTag = "{robot}";
+  for (std::size_t at = name.find(kTag); at != std::string::npos; at = name.find(kTag, at)) {
+    name.replace(at, kTag.size(), robot);
+    at += robot.size();
+  }
+  return name;
+}
+
+void runPlay(const PlayOptions& o, const AppConfig& config) {
+  if (!(o.rate > 0.0) || o.rate > 1000.0) throw core::Error("--rate must be in (0, 1000]");
+  const StopSignals signals;
+  const io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
+  const auto index = spec.robotIndex(o.robot);
+  if (!index) throw core::Error(fmt::format("dataset {} has no robot '{}'", o.dataset, o.robot));
+  const auto scans = sim::openRobotScans(spec, *index);
+  const std::size_t frames =
+      o.max_frames > 0 ? std::min(o.max_frames, scans->size()) : scans->size();
+  const std::string topic = named(o.points.value_or(config.ros2.points), o.robot);
+  const std::string frame = named(config.ros2.sensor_frame, o.robot);
+  ros2::Node node(ros2::NodeConfig{o.ros_domain.value_or(config.ros2.domain),
+                                   o.interface.value_or(config.ros2.interface)});
+  node.advertise<ros2::PointCloud2>(topic, ros2::Qos::sensor_data);
+  // Best effort: scans sent before anyone listens are gone.
+  const double wait_until = unixNow() + o.wait;
+  while (stopSignal() == 0 && node.matched(topic) == 0 && unixNow() < wait_until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  fmt::print("play: {} scans of robot {} on {} ({} subscriber{}), rate {}\n", frames, o.robot,
+             topic, node.matched(topic), node.matched(topic) == 1 ? "" : "s", o.rate);
+  std::fflush(stdout);
+  const double start = unixNow();
+  const double first = frames > 0 ? scans->stamp(0) : 0.0;
+  std::size_t sent = 0;
+  for (std::size_t i = 0; i < frames && stopSignal() == 0; ++i) {
+    const double due = start + (scans->stamp(i) - first) / o.rate;
+    while (stopSignal() == 0 && unixNow() < due)
+      std::this_thread::sleep_for(std::chrono::duration<double>(std::min(0.05, due - unixNow())));
+    const core::PointCloud scan = scans->scan(i);
+    const io::PointCloud2Data data = io::encodePointCloud2(scan);
+    ros2::PointCloud2 cloud;
+    cloud.header = {due, frame};  // the wall clock when the scan is due, as a driver stamps it
+    cloud.width = static_cast<std::uint32_t>(scan.size());
+    cloud.fields = data.fields;
+    cloud.point_step = data.point_step;
+    cloud.row_step = cloud.width * cloud.point_step;
+    cloud.data = data.data;
+    node.publish(topic, cloud);
+    ++sent;
+  }
+  fmt::print("play: {} scans published in {:.1f} s; scan i stamped {:.6f} + (t_i - {:.6f}) / {}\n",
+             sent, unixNow() - start, start, first, o.rate);
+  if (stopSignal() != 0) throw CLI::RuntimeError(128 + stopSignal());
+}
+
+}  // namespace
+
+void addPlayCommand(CLI::App& app, const AppConfig& config) {
+  auto o = std::make_shared<PlayOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "play",
+      "publish one robot's scans of a dataset on ROS 2 (sensor_msgs/PointCloud2) in real time, "
+      "as its LiDAR driver would: a stream for robot --ros2, RViz or Foxglove");
+  cmd->add_option("--dataset", o->dataset, "dataset folder (dataset.yaml)")->required();
+  cmd->add_option("--robot", o->robot, "the robot's name in the dataset")->required();
+  cmd->add_option("--points", o->points, "topic (default: ros2.points, {robot} replaced)");
+  cmd->add_option("--ros-domain", o->ros_domain, "DDS domain, ROS_DOMAIN_ID (default: ros2.domain)")
+      ->check(CLI::Range(0, 232));
+  cmd->add_option("--interface", o->interface,
+                  "network interface with multicast discovery, e.g. lo (default: ros2.interface)");
+  cmd->add_option("--rate", o->rate, "dataset seconds per wall second")->capture_default_str();
+  cmd->add_option("--max-frames", o->max_frames, "scans to publish at most (0: all)")
+      ->check(kNonNegative)
+      ->capture_default_str();
+  cmd->add_option("--wait", o->wait, "s to wait for a subscriber before the first scan")
+      ->check(kNonNegative)
+      ->capture_default_str();
+  cmd->callback([o, &config] { runPlay(*o, config); });
+}
+
+}  // namespace dcl::apps
