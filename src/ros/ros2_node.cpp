@@ -28,8 +28,12 @@ constexpr dds_duration_t kMaxWriteBlocking = DDS_MSECS(100);
 constexpr std::uint32_t kTakeBatch = 16;
 
 /// ROS 2's QoS profiles (rmw_qos_profile_sensor_data, _default, and a latched topic's).
-DdsQos ddsQos(Qos qos) {
+DdsQos ddsQos(Qos qos, bool writer) {
   DdsQos q(dds_create_qos());
+  // ROS 2 writes XCDR1 (plain CDR); a reader takes XCDR2 too.
+  const dds_data_representation_id_t representations[] = {DDS_DATA_REPRESENTATION_XCDR1,
+                                                          DDS_DATA_REPRESENTATION_XCDR2};
+  dds_qset_data_representation(q.get(), writer ? 1 : 2, representations);
   switch (qos) {
     case Qos::sensor_data:
       dds_qset_reliability(q.get(), DDS_RELIABILITY_BEST_EFFORT, 0);
@@ -165,7 +169,7 @@ void Node::advertise(const std::string& topic, Qos qos) {
     return;
   }
   const dds_entity_t t = impl_->topic(topic, descriptor);
-  const DdsQos q = ddsQos(qos);
+  const DdsQos q = ddsQos(qos, /*writer=*/true);
   const dds_entity_t writer =
       ddsChecked(dds_create_writer(impl_->participant.handle(), t, q.get(), nullptr),
                  "dds_create_writer(" + topic + ")");
@@ -187,7 +191,7 @@ template <class M>
 void Node::subscribe(const std::string& topic, Qos qos, std::function<void(M&&)> callback) {
   using W = detail::Wire<M>;
   const dds_entity_t t = impl_->topic(topic, W::descriptor());
-  const DdsQos q = ddsQos(qos);
+  const DdsQos q = ddsQos(qos, /*writer=*/false);
   const dds_entity_t reader =
       ddsChecked(dds_create_reader(impl_->participant.handle(), t, q.get(), nullptr),
                  "dds_create_reader(" + topic + ")");
