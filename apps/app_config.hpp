@@ -131,10 +131,12 @@ struct RobotSection {
 /// A robot on ROS 2 (`robot --ros2`): where its scans come from and what it
 /// publishes. "{robot}" in a name stands for the robot's name.
 struct Ros2Section {
-  std::uint32_t domain = 0;                          ///< DDS domain (ROS_DOMAIN_ID)
-  std::string interface {};                          ///< network interface ('': default)
-  std::string points = "/points";                    ///< sensor_msgs/PointCloud2 in
-  std::string map_frame = "map";                     ///< the group's frame
+  std::uint32_t domain = 0;        ///< DDS domain (ROS_DOMAIN_ID)
+  std::string interface {};        ///< network interface ('': default)
+  std::string points = "/points";  ///< sensor_msgs/PointCloud2 in
+  std::string odometry_in{};       ///< nav_msgs/Odometry of an external front-end (empty: built-in)
+  double odometry_wait = 0.5;      ///< s a scan waits for the external odometry to reach it
+  std::string map_frame = "map";   ///< the group's frame
   std::string odom_frame = "{robot}/odom";           ///< the robot's odometry frame
   std::string base_frame = "{robot}/base_link";      ///< the robot
   std::string sensor_frame = "{robot}/lidar";        ///< the LiDAR (clouds `play` publishes)
@@ -155,6 +157,12 @@ struct Ros2Section {
                   comm::isPlainName(interface, "_-.:"),
               "must be empty or a network interface name");
     v.field("points", points, "sensor_msgs/PointCloud2 topic of the robot's LiDAR");
+    v.field("odometry_in", odometry_in,
+            "nav_msgs/Odometry topic of the robot's own front-end (empty: the built-in LiDAR "
+            "odometry); the external section's T_body_sensor and noise apply");
+    v.field("odometry_wait", odometry_wait,
+            "s a scan waits for the external odometry to reach its stamp, then is dropped")
+        .within(0.0, 60.0);
     v.field("map_frame", map_frame, "frame id of the group's map");
     v.field("odom_frame", odom_frame, "frame id of the robot's odometry");
     v.field("base_frame", base_frame, "frame id of the robot");

@@ -28,6 +28,7 @@ struct PlayOptions {
   std::string dataset;
   std::string robot;
   std::optional<std::string> points;        ///< default: ros2.points
+  std::string odometry;                     ///< also the ground truth as nav_msgs/Odometry here
   std::optional<std::uint32_t> ros_domain;  ///< default: ros2.domain
   std::optional<std::string> interface;     ///< default: ros2.interface
   double rate = 1.0;                        ///< dataset seconds per wall second
@@ -58,6 +59,11 @@ void runPlay(const PlayOptions& o, const AppConfig& config) {
   ros2::Node node(ros2::NodeConfig{o.ros_domain.value_or(config.ros2.domain),
                                    o.interface.value_or(config.ros2.interface)});
   node.advertise<ros2::PointCloud2>(topic, ros2::Qos::sensor_data);
+  // A perfect front-end for trying the external odometry: the ground truth.
+  const std::string odometry_topic = named(o.odometry, o.robot);
+  const core::Trajectory truth =
+      o.odometry.empty() ? core::Trajectory{} : io::readGroundTruth(spec, *index);
+  if (!o.odometry.empty()) node.advertise<ros2::Odometry>(odometry_topic, ros2::Qos::reliable);
   // Best effort: scans sent before anyone listens are gone.
   const double wait_until = unixNow() + o.wait;
   while (stopSignal() == 0 && node.matched(topic) == 0 && unixNow() < wait_until)
@@ -72,6 +78,15 @@ void runPlay(const PlayOptions& o, const AppConfig& config) {
     const double due = start + (scans->stamp(i) - first) / o.rate;
     while (stopSignal() == 0 && unixNow() < due)
       std::this_thread::sleep_for(std::chrono::duration<double>(std::min(0.05, due - unixNow())));
+    if (!o.odometry.empty()) {
+      if (const auto pose = truth.at(scans->stamp(i))) {
+        ros2::Odometry m;
+        m.header = {due, named(config.ros2.odom_frame, o.robot)};
+        m.child_frame_id = named(config.ros2.base_frame, o.robot);
+        m.pose = *pose;
+        node.publish(odometry_topic, m);
+      }
+    }
     const core::PointCloud scan = scans->scan(i);
     const io::PointCloud2Data data = io::encodePointCloud2(scan);
     ros2::PointCloud2 cloud;
@@ -100,6 +115,9 @@ void addPlayCommand(CLI::App& app, const AppConfig& config) {
   cmd->add_option("--dataset", o->dataset, "dataset folder (dataset.yaml)")->required();
   cmd->add_option("--robot", o->robot, "the robot's name in the dataset")->required();
   cmd->add_option("--points", o->points, "topic (default: ros2.points, {robot} replaced)");
+  cmd->add_option("--odometry", o->odometry,
+                  "also publish the robot's ground truth on this topic (nav_msgs/Odometry, before "
+                  "each scan), a perfect front-end for robot --ros2 --odometry");
   cmd->add_option("--ros-domain", o->ros_domain, "DDS domain, ROS_DOMAIN_ID (default: ros2.domain)")
       ->check(CLI::Range(0, 232));
   cmd->add_option("--interface", o->interface,

@@ -33,6 +33,7 @@
 #include <dcl/core/progress.hpp>
 #include <dcl/io/dataset.hpp>
 #include <dcl/io/point_cloud2.hpp>
+#include <dcl/odometry/external_odometry.hpp>
 #include <dcl/registration/voxel_filter.hpp>
 #include <dcl/robot/robot_node.hpp>
 #include <dcl/ros/ros2_node.hpp>
@@ -72,9 +73,11 @@ struct RobotOptions {
   comm::DdsConfig dds;
   bool json = false;
   // Live on ROS 2 instead of a dataset:
-  bool ros2 = false;                        ///< scans from a ROS 2 topic
-  std::optional<int> id;                    ///< the robot's id in the swarm (0..254), live only
-  std::optional<std::string> points;        ///< the cloud topic (default: ros2.points)
+  bool ros2 = false;                  ///< scans from a ROS 2 topic
+  std::optional<int> id;              ///< the robot's id in the swarm (0..254), live only
+  std::optional<std::string> points;  ///< the cloud topic (default: ros2.points)
+  std::optional<std::string>
+      odometry_in;  ///< an external front-end's topic (default: ros2.odometry_in)
   std::optional<std::uint32_t> ros_domain;  ///< default: ros2.domain
 };
 
@@ -360,12 +363,23 @@ struct LiveRobot {
   std::uint32_t incarnation;
   comm::DdsTransport dds;
   MeteredTransport metered;
+  odometry::ExternalOdometry* external = nullptr;  ///< the node's front-end, when external
   robot::RobotNode node;
   double joined_at;                                       ///< s since the Unix epoch
   double now = -std::numeric_limits<double>::infinity();  ///< s since joining
-  std::optional<double> stamp_offset;  ///< s from a scan's ROS stamp to the node's clock
-  std::optional<std::pair<double, core::PointCloud>> waiting;  ///< the newest scan not yet taken
-  std::size_t received = 0;                                    ///< clouds that arrived
+  std::optional<double> stamp_offset;  ///< s from a ROS stamp to the node's clock
+  /// The newest scan not yet taken: its stamp on the node's clock, the scan,
+  /// and when it arrived (s since the Unix epoch).
+  struct Waiting {
+    double stamp = 0.0;
+    core::PointCloud scan;
+    double arrived = 0.0;
+  };
+  std::optional<Waiting> waiting;
+  std::size_t without_odometry = 0;   ///< scans the external odometry did not reach in time
+  std::size_t odometry_received = 0;  ///< external odometry messages
+  std::size_t odometry_refused = 0;   ///< of them, not after the last one, or not finite
+  std::size_t received = 0;           ///< clouds that arrived
   std::size_t dropped = 0;  ///< of them, replaced by a newer one before the front-end took them
   std::size_t refused = 0;  ///< of them, unreadable (no x, y, z; sizes that do not fit)
   std::string last_refusal;
@@ -373,28 +387,39 @@ struct LiveRobot {
   std::size_t published_keyframes = 0;
   double next_publish = 0.0;
 
-  LiveRobot(const RobotOptions& options, const Ros2Section& section, std::uint8_t robot,
-            const robot::RobotConfig& config)
+  LiveRobot(const RobotOptions& options, const AppConfig& app, std::uint8_t robot)
       : o(options),
-        ros(resolved(section, options)),
+        ros(resolved(app.ros2, options)),
         id(robot),
         ros_node(ros2::NodeConfig{ros.domain, ros.interface}),
         incarnation(clockIncarnation()),
         dds(core::RobotId(robot), o.dds),
         metered(dds, o.meter_interval),
-        node(metered, config, incarnation),
+        node(metered, robotConfig(app), incarnation, frontEnd(ros, app.external, external)),
         joined_at(unixNow()) {
-    for (const std::string* topic :
-         {&ros.points, &ros.odometry_topic, &ros.path_topic, &ros.map_topic, &ros.loops_topic}) {
-      (void)ros2::ddsTopicName(*topic);  // a bad name fails here, before any work
+    for (const std::string* topic : {&ros.points, &ros.odometry_topic, &ros.path_topic,
+                                     &ros.map_topic, &ros.loops_topic, &ros.odometry_in}) {
+      if (!topic->empty()) (void)ros2::ddsTopicName(*topic);  // a bad name fails before any work
     }
+  }
+
+  /// An external front-end fed from ros.odometry_in, or none (the built-in odometry).
+  static std::unique_ptr<odometry::Odometry> frontEnd(const Ros2Section& ros,
+                                                      const odometry::ExternalOdometryConfig& c,
+                                                      odometry::ExternalOdometry*& raw) {
+    if (ros.odometry_in.empty()) return nullptr;
+    auto front_end =
+        std::make_unique<odometry::ExternalOdometry>(odometry::ExternalOdometry::streaming(c));
+    raw = front_end.get();
+    return front_end;
   }
 
   static Ros2Section resolved(Ros2Section s, const RobotOptions& o) {
     if (o.points) s.points = *o.points;
+    if (o.odometry_in) s.odometry_in = *o.odometry_in;
     if (o.ros_domain) s.domain = *o.ros_domain;
     if (s.interface.empty()) s.interface = o.dds.interface;  // one network for both, unless told
-    for (std::string* name : {&s.points, &s.map_frame, &s.odom_frame, &s.base_frame,
+    for (std::string* name : {&s.points, &s.odometry_in, &s.map_frame, &s.odom_frame, &s.base_frame,
                               &s.odometry_topic, &s.path_topic, &s.map_topic, &s.loops_topic}) {
       *name = named(*name, o.robot);
     }
@@ -407,6 +432,12 @@ struct LiveRobot {
     return now;
   }
 
+  /// `stamp` (a ROS stamp) on the node's clock; the first message sets the offset.
+  double nodeStamp(double stamp) {
+    if (!stamp_offset) stamp_offset = look() - stamp;
+    return stamp + *stamp_offset;
+  }
+
   void onCloud(ros2::PointCloud2&& m) {
     ++received;
     core::PointCloud cloud;
@@ -417,9 +448,30 @@ struct LiveRobot {
       last_refusal = e.what();
       return;
     }
-    if (!stamp_offset) stamp_offset = look() - m.header.stamp;
     if (waiting) ++dropped;
-    waiting.emplace(m.header.stamp + *stamp_offset, std::move(cloud));
+    waiting = Waiting{nodeStamp(m.header.stamp), std::move(cloud), unixNow()};
+  }
+
+  void onOdometry(ros2::Odometry&& m) {
+    ++odometry_received;
+    if (!external->append(nodeStamp(m.header.stamp), m.pose)) ++odometry_refused;
+  }
+
+  /// The waiting scan through the front-end when it can go: at once with the
+  /// built-in odometry, once the external one reaches its stamp otherwise
+  /// (dropped and counted after ros.odometry_wait).
+  void takeWaiting() {
+    if (!waiting) return;
+    if (external != nullptr && !external->reaches(waiting->stamp)) {
+      if (unixNow() - waiting->arrived > ros.odometry_wait) {
+        ++without_odometry;
+        waiting.reset();
+      }
+      return;
+    }
+    node.addScan(waiting->stamp, waiting->scan);
+    waiting.reset();
+    ++frames;
   }
 
   /// A keyframe's time as its scan was stamped.
@@ -529,6 +581,11 @@ struct LiveRobot {
     r.counters["scans_received"] = static_cast<double>(received);
     r.counters["scans_dropped"] = static_cast<double>(dropped);
     r.counters["scans_refused"] = static_cast<double>(refused);
+    if (external != nullptr) {
+      r.counters["scans_without_odometry"] = static_cast<double>(without_odometry);
+      r.counters["odometry_received"] = static_cast<double>(odometry_received);
+      r.counters["odometry_refused"] = static_cast<double>(odometry_refused);
+    }
     return out;
   }
 
@@ -536,6 +593,13 @@ struct LiveRobot {
   bool run() {
     ros_node.subscribe<ros2::PointCloud2>(ros.points, ros2::Qos::sensor_data,
                                           [this](ros2::PointCloud2&& m) { onCloud(std::move(m)); });
+    if (external != nullptr) {
+      // Best effort matches any writer; deep enough for a fast front-end's
+      // poses between two scans' work.
+      ros_node.subscribe<ros2::Odometry>(
+          ros.odometry_in, ros2::Qos::sensor_data,
+          [this](ros2::Odometry&& m) { onOdometry(std::move(m)); }, 1000);
+    }
     ros_node.advertise<ros2::Odometry>(ros.odometry_topic, ros2::Qos::reliable);
     ros_node.advertise<ros2::TFMessage>("/tf", ros2::Qos::reliable);
     ros_node.advertise<ros2::Path>(ros.path_topic, ros2::Qos::transient_local);
@@ -548,11 +612,7 @@ struct LiveRobot {
     const auto tick = std::chrono::milliseconds(static_cast<std::int64_t>(kTickPeriod * 1000.0));
     while (stopSignal() == 0) {
       ros_node.spin(tick);
-      if (waiting) {
-        node.addScan(waiting->first, waiting->second);
-        waiting.reset();
-        ++frames;
-      }
+      takeWaiting();
       node.tick(look());
       publishKeyframe();
       publishMaps();
@@ -594,7 +654,7 @@ void runLiveRobot(const RobotOptions& o, const AppConfig& config) {
   }
   const StopSignals signals;
   OutputFolder output(o.out + "/" + o.robot, o.force, {"robot.log"});
-  LiveRobot live(o, config.ros2, static_cast<std::uint8_t>(*o.id), robotConfig(config));
+  LiveRobot live(o, config, static_cast<std::uint8_t>(*o.id));
   live.run();
   const RobotOutputs outputs = live.outputs();
   writeRobotOutputs(output.path(), outputs);
@@ -622,8 +682,9 @@ void runRobot(const RobotOptions& o, const AppConfig& config) {
   }
   if (o.dataset.empty())
     throw core::Error("robot: --dataset is required (or --ros2 for a live robot)");
-  if (o.id || o.points || o.ros_domain)
-    throw core::Error("robot: --id, --points and --ros-domain are for a live robot (--ros2)");
+  if (o.id || o.points || o.ros_domain || o.odometry_in)
+    throw core::Error(
+        "robot: --id, --points, --odometry and --ros-domain are for a live robot (--ros2)");
   const StopSignals signals;
   io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const std::size_t index = robotIndex(spec, o.robot);
@@ -697,6 +758,9 @@ void addRobotCommand(CLI::App& app, const AppConfig& config) {
       ->check(CLI::Range(0, 254));
   cmd->add_option("--points", o->points,
                   "live: sensor_msgs/PointCloud2 topic (default: ros2.points)");
+  cmd->add_option("--odometry", o->odometry_in,
+                  "live: nav_msgs/Odometry topic of the robot's own front-end, used instead of the "
+                  "built-in odometry (default: ros2.odometry_in)");
   cmd->add_option("--ros-domain", o->ros_domain,
                   "live: DDS domain of the ROS 2 topics, ROS_DOMAIN_ID (default: ros2.domain)")
       ->check(CLI::Range(0, 232));

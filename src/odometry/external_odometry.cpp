@@ -74,6 +74,34 @@ ExternalOdometry::ExternalOdometry(core::Trajectory T_world_body,
 ExternalOdometry::ExternalOdometry(const ExternalOdometryConfig& config)
     : ExternalOdometry(loadExternalTrajectory(config), config) {}
 
+ExternalOdometry::ExternalOdometry(Streaming, const ExternalOdometryConfig& config)
+    : T_body_sensor_(bodySensorOf(config)), config_(config) {}
+
+ExternalOdometry ExternalOdometry::streaming(const ExternalOdometryConfig& config) {
+  return ExternalOdometry(Streaming{}, config);
+}
+
+bool ExternalOdometry::append(double stamp, const Eigen::Isometry3d& T_world_body) {
+  if (!std::isfinite(stamp) || !T_world_body.matrix().allFinite()) return false;
+  if (!T_world_body_.empty() && stamp <= T_world_body_.stamps().back()) return false;
+  // Let go of the poses before the one that brackets the last frame: a live
+  // front-end sends them for hours.
+  constexpr std::size_t kMostKept = 4096;
+  if (T_world_body_.size() >= kMostKept && last_stamp_) {
+    core::Trajectory kept;
+    const auto& stamps = T_world_body_.stamps();
+    std::size_t first = 0;
+    while (first + 1 < stamps.size() && stamps[first + 1] <= *last_stamp_) ++first;
+    for (std::size_t i = first; i < stamps.size(); ++i)
+      kept.push_back(stamps[i], T_world_body_.pose(i));
+    T_world_body_ = std::move(kept);
+  }
+  core::Trajectory one;
+  one.push_back(stamp, T_world_body);
+  T_world_body_.push_back(stamp, projected(std::move(one)).pose(0));
+  return true;
+}
+
 void ExternalOdometry::requireOverlap(double first_stamp, double last_stamp) const {
   if (first_stamp <= lastStamp() && last_stamp >= firstStamp()) return;
   throw core::Error(fmt::format(

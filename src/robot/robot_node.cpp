@@ -229,7 +229,7 @@ struct RobotNode::Impl {
   core::RobotId self;
   RobotConfig config;
   comm::Messenger messenger;
-  odometry::LidarOdometry odometry;
+  std::unique_ptr<odometry::Odometry> odometry;  ///< the front-end
   odometry::LocalMapper mapper;
   place::IrisConfig iris;
   std::shared_ptr<const place::Descriptor> descriptor;
@@ -269,11 +269,13 @@ struct RobotNode::Impl {
   std::size_t solved_own_loops = 0;
   double last_solved_alone = kNever;
 
-  Impl(comm::Transport& transport, const RobotConfig& c, std::uint32_t incarnation)
+  Impl(comm::Transport& transport, const RobotConfig& c, std::uint32_t incarnation,
+       std::unique_ptr<odometry::Odometry> front_end)
       : self(transport.self()),
         config(c),
         messenger(transport, incarnation, c.messenger),
-        odometry(c.odometry),
+        odometry(front_end ? std::move(front_end)
+                           : std::make_unique<odometry::LidarOdometry>(c.odometry)),
         mapper(transport.self(), c.mapper),
         iris(c.descriptor.iris),
         descriptor(place::makeDescriptor(c.descriptor)),
@@ -289,7 +291,7 @@ struct RobotNode::Impl {
 
   void addScan(double stamp, const core::PointCloud& scan) {
     count("frames");
-    const odometry::OdometryResult result = odometry.process(stamp, scan);
+    const odometry::OdometryResult result = odometry->process(stamp, scan);
     const odometry::MapperUpdate update =
         result.registered.empty() ? mapper.process(result, scan) : mapper.process(result);
     if (update.loop) count("intra_loops");
@@ -1428,7 +1430,10 @@ struct RobotNode::Impl {
 
 RobotNode::RobotNode(comm::Transport& transport, const RobotConfig& config,
                      std::uint32_t incarnation)
-    : impl_(std::make_unique<Impl>(transport, config, incarnation)) {}
+    : RobotNode(transport, config, incarnation, nullptr) {}
+RobotNode::RobotNode(comm::Transport& transport, const RobotConfig& config,
+                     std::uint32_t incarnation, std::unique_ptr<odometry::Odometry> front_end)
+    : impl_(std::make_unique<Impl>(transport, config, incarnation, std::move(front_end))) {}
 RobotNode::~RobotNode() = default;
 
 core::RobotId RobotNode::id() const {

@@ -188,10 +188,12 @@ void Node::publish(const std::string& topic, const M& message) {
 }
 
 template <class M>
-void Node::subscribe(const std::string& topic, Qos qos, std::function<void(M&&)> callback) {
+void Node::subscribe(const std::string& topic, Qos qos, std::function<void(M&&)> callback,
+                     std::int32_t depth) {
   using W = detail::Wire<M>;
   const dds_entity_t t = impl_->topic(topic, W::descriptor());
   const DdsQos q = ddsQos(qos, /*writer=*/false);
+  if (depth > 0) dds_qset_history(q.get(), DDS_HISTORY_KEEP_LAST, depth);
   const dds_entity_t reader =
       ddsChecked(dds_create_reader(impl_->participant.handle(), t, q.get(), nullptr),
                  "dds_create_reader(" + topic + ")");
@@ -261,10 +263,11 @@ std::size_t Node::matched(const std::string& topic) const {
   return n;
 }
 
-#define DCL_ROS2_NODE_MESSAGE(M)                                \
-  template void Node::advertise<M>(const std::string&, Qos);    \
-  template void Node::publish<M>(const std::string&, const M&); \
-  template void Node::subscribe<M>(const std::string&, Qos, std::function<void(M &&)>);
+#define DCL_ROS2_NODE_MESSAGE(M)                                                       \
+  template void Node::advertise<M>(const std::string&, Qos);                           \
+  template void Node::publish<M>(const std::string&, const M&);                        \
+  template void Node::subscribe<M>(const std::string&, Qos, std::function<void(M &&)>, \
+                                   std::int32_t);
 DCL_ROS2_NODE_MESSAGE(PointCloud2)
 DCL_ROS2_NODE_MESSAGE(Odometry)
 DCL_ROS2_NODE_MESSAGE(Path)

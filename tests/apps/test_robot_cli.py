@@ -301,6 +301,42 @@ class Ros2Robot(unittest.TestCase):
                         "--est", mapped, "--format", "tum", "--align", "se3", "--json")
         self.assertLess(json.loads(ate)["translation_m"]["rmse"], 0.3)
 
+    def test_a_live_robot_takes_its_poses_from_an_external_front_end(self):
+        # `play --odometry` publishes the ground truth before each scan: a
+        # perfect front-end, so the trajectory is the ground truth's keyframes.
+        out = os.path.join(self.tmp.name, "external")
+        topic = f"/dcl_test_{os.getpid()}/ext"
+        common = ["--ros-domain", "175", "--interface", "lo", "--points", topic + "/points"]
+        robot = subprocess.Popen(
+            [DCL_SLAM, "robot", "--ros2", "--robot", "a", "--id", "0", "--out", out,
+             "--domain", "176", "--swarm", f"ros2-ext-{os.getpid()}", "--odometry",
+             topic + "/odom", *common],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.addCleanup(lambda: robot.poll() is None and robot.kill())
+        _, played, _ = run("play", "--dataset", self.dataset, "--robot", "a", "--rate", "2",
+                           "--odometry", topic + "/odom", *common, timeout=120)
+        words = played.strip().splitlines()[-1].replace("(", " ").replace(")", " ").split()
+        start, first = float(words[words.index("stamped") + 1]), float(words[words.index("-") + 1])
+        time.sleep(2)
+        robot.send_signal(signal.SIGINT)
+        _, err = robot.communicate(timeout=60)
+        self.assertEqual(robot.returncode, 128 + signal.SIGINT, err)
+        with open(os.path.join(out, "a", "robot.json")) as f:
+            report = json.load(f)
+        counters = report["counters"]
+        self.assertGreaterEqual(counters["odometry_received"], self.SCANS - 5)
+        self.assertEqual(counters["odometry_refused"], 0)
+        self.assertLessEqual(counters["scans_without_odometry"], 2)
+        self.assertGreater(report["keyframes"], 10)
+        mapped = os.path.join(self.tmp.name, "external.tum")
+        with open(mapped, "w") as f:
+            for row in tum_rows(os.path.join(out, "a", "trajectory.tum")):
+                t, *pose = row.split()
+                f.write(f"{first + (float(t) - start) * 2:.6f} {' '.join(pose)}\n")
+        _, ate, _ = run("eval", "ate", "--gt", os.path.join(self.dataset, "ground_truth", "a.tum"),
+                        "--est", mapped, "--format", "tum", "--align", "se3", "--json")
+        self.assertLess(json.loads(ate)["translation_m"]["rmse"], 0.001)
+
 
 if __name__ == "__main__":
     unittest.main()

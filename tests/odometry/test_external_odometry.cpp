@@ -78,6 +78,48 @@ TEST(ExternalOdometry, FirstProcessedFrameIsTheOriginAndPosesInterpolate) {
   }
 }
 
+TEST(ExternalOdometry, AStreamedFrontEndPlacesFramesAsTheWholeTrajectoryDoes) {
+  // A live front-end's poses arrive one by one, frames in between; all 3000
+  // poses of the recording go through a window of a few thousand.
+  const core::Trajectory tum =
+      io::readTumPoses(data("trajectories/evo/freiburg1_xyz-groundtruth.txt"));
+  ASSERT_GT(tum.size(), 2500u);
+  ExternalOdometry whole(tum);
+  ExternalOdometry live = ExternalOdometry::streaming({});
+  EXPECT_FALSE(live.reaches(tum.stamp(0)));
+  for (std::size_t i = 0; i < tum.size(); ++i) {
+    ASSERT_TRUE(live.append(tum.stamp(i), tum.pose(i)));
+    if (i < 2 || i % 5 != 0) {
+      continue;
+    }
+    const double t = 0.5 * (tum.stamp(i - 1) + tum.stamp(i));
+    ASSERT_TRUE(live.reaches(t));
+    const OdometryResult a = live.process(t, {});
+    const OdometryResult b = whole.process(t, {});
+    ASSERT_TRUE(a.health.accepted) << i;
+    EXPECT_LT(poseError(a.T_odom_sensor, b.T_odom_sensor), 1e-9) << i;
+  }
+  // Not after the last pose, or not finite: refused, nothing kept.
+  EXPECT_FALSE(live.append(tum.stamp(tum.size() - 1), tum.pose(0)));
+  EXPECT_FALSE(live.append(std::numeric_limits<double>::quiet_NaN(), tum.pose(0)));
+  Eigen::Isometry3d bad = tum.pose(0);
+  bad.translation().x() = std::numeric_limits<double>::infinity();
+  EXPECT_FALSE(live.append(tum.stamp(tum.size() - 1) + 1.0, bad));
+  EXPECT_FALSE(live.reaches(tum.stamp(tum.size() - 1) + 0.5));
+  // Hours of a 100 Hz front-end keep a window, not every pose.
+  double t = tum.stamp(tum.size() - 1);
+  for (int i = 0; i < 20000; ++i) {
+    t += 0.01;
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation().x() = 0.01 * i;
+    ASSERT_TRUE(live.append(t, T));
+    if (i % 10 == 0) {
+      ASSERT_TRUE(live.process(t, {}).health.accepted);
+    }
+  }
+  EXPECT_LE(live.posesHeld(), 4096u + 1u);
+}
+
 TEST(ExternalOdometry, BadStampsAreReportedAndThePoseHeld) {
   const core::Trajectory tum =
       io::readTumPoses(data("trajectories/evo/freiburg1_xyz-groundtruth.txt"));

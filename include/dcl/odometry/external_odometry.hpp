@@ -89,6 +89,24 @@ class ExternalOdometry final : public Odometry {
   /// Loads the trajectory `config.file` names (loadExternalTrajectory).
   explicit ExternalOdometry(const ExternalOdometryConfig& config);
 
+  /// An odometry fed while it runs (a live front-end's messages, append()),
+  /// with no pose yet.
+  static ExternalOdometry streaming(const ExternalOdometryConfig& config);
+
+  /// The front-end's next pose: false (and nothing kept) when `stamp` is not
+  /// finite or not after the last one, or the pose not finite. Poses before
+  /// the last frame processed are let go as new ones come.
+  bool append(double stamp, const Eigen::Isometry3d& T_world_body);
+
+  /// Whether a pose at or after `stamp` has arrived, so that a frame at
+  /// `stamp` can be placed (or found before the first pose).
+  /// Poses held (a streamed front-end's stay a few thousand).
+  [[nodiscard]] std::size_t posesHeld() const { return T_world_body_.size(); }
+
+  [[nodiscard]] bool reaches(double stamp) const {
+    return !T_world_body_.empty() && T_world_body_.stamps().back() >= stamp;
+  }
+
   /// The pose at `stamp` (the scan is not used). A stamp outside the
   /// trajectory, not finite, or before the previous frame's gives
   /// health.accepted = false and the pose held. The covariance is the model of
@@ -116,6 +134,9 @@ class ExternalOdometry final : public Odometry {
  private:
   [[nodiscard]] OdometryResult held(double stamp, std::string problem) const;
   [[nodiscard]] core::Matrix6d motionCovariance(const Eigen::Isometry3d& T_step) const;
+
+  struct Streaming {};
+  ExternalOdometry(Streaming, const ExternalOdometryConfig& config);
 
   core::Trajectory T_world_body_;
   Eigen::Isometry3d T_body_sensor_;

@@ -64,6 +64,7 @@
 #include <dcl/core/point_cloud.hpp>
 #include <dcl/odometry/lidar_odometry.hpp>
 #include <dcl/odometry/local_mapper.hpp>
+#include <dcl/odometry/odometry.hpp>
 #include <dcl/place/descriptor.hpp>
 #include <dcl/place/place_index.hpp>
 #include <dcl/registration/cloud_codec.hpp>
@@ -171,13 +172,17 @@ class RobotNode {
   /// core::Error for an invalid configuration (or a descriptor other than
   /// LiDAR-Iris, the only one with a wire codec).
   RobotNode(comm::Transport& transport, const RobotConfig& config, std::uint32_t incarnation = 1);
+  /// The same with another front-end than the built-in LiDAR odometry (an
+  /// external one: the poses of the robot's own LiDAR-inertial odometry).
+  RobotNode(comm::Transport& transport, const RobotConfig& config, std::uint32_t incarnation,
+            std::unique_ptr<odometry::Odometry> front_end);
   ~RobotNode();
   RobotNode(const RobotNode&) = delete;
   RobotNode& operator=(const RobotNode&) = delete;
 
   [[nodiscard]] core::RobotId id() const;
 
-  /// A scan taken at `stamp` (s, the robot's clock), through the built-in odometry.
+  /// A scan taken at `stamp` (s, the robot's clock), through the front-end.
   void addScan(double stamp, const core::PointCloud& scan);
 
   /// Handles what arrived and runs the timers at `now` (s, non-decreasing).

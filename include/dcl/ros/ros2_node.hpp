@@ -74,8 +74,11 @@ class Node {
   /// Calls `callback` in spin() with each message that arrives on `topic`.
   /// A sample whose values the message cannot hold (a zero quaternion, a time
   /// out of range) is dropped and counted in refused().
+  /// `depth` > 0 keeps that many samples instead of the profile's (a fast
+  /// odometry topic read between two scans' work).
   template <class M>
-  void subscribe(const std::string& topic, Qos qos, std::function<void(M&&)> callback);
+  void subscribe(const std::string& topic, Qos qos, std::function<void(M&&)> callback,
+                 std::int32_t depth = 0);
 
   /// Hands what arrived to the callbacks, waiting up to `timeout` for the
   /// first sample; returns the number of messages delivered.
