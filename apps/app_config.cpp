@@ -54,4 +54,13 @@ io::DatasetReadOptions& datasetReadOptions() {
   return options;
 }
 
+std::string named(std::string name, const std::string& robot) {
+  constexpr std::string_view kTag = "{robot}";
+  for (std::size_t at = name.find(kTag); at != std::string::npos; at = name.find(kTag, at)) {
+    name.replace(at, kTag.size(), robot);
+    at += robot.size();
+  }
+  return name;
+}
+
 }  // namespace dcl::apps

@@ -178,6 +178,9 @@ struct Ros2Section {
   }
 };
 
+/// `name` (a ros2 section's topic or frame) with each "{robot}" replaced by `robot`.
+std::string named(std::string name, const std::string& robot);
+
 /// Everything `dcl-slam` can be configured with.
 struct AppConfig {
   std::string log_level = "info";                 ///< trace | debug | info | warn | error | off

@@ -36,15 +36,6 @@ struct PlayOptions {
   double wait = 10.0;                       ///< s to wait for a subscriber before the first scan
 };
 
-std::string named(std::string name, const std::string& robot) {
-  constexpr std::string_view kTag = "{robot}";
-  for (std::size_t at = name.find(kTag); at != std::string::npos; at = name.find(kTag, at)) {
-    name.replace(at, kTag.size(), robot);
-    at += robot.size();
-  }
-  return name;
-}
-
 void runPlay(const PlayOptions& o, const AppConfig& config) {
   if (!(o.rate > 0.0) || o.rate > 1000.0) throw core::Error("--rate must be in (0, 1000]");
   const StopSignals signals;
@@ -88,15 +79,8 @@ void runPlay(const PlayOptions& o, const AppConfig& config) {
       }
     }
     const core::PointCloud scan = scans->scan(i);
-    const io::PointCloud2Data data = io::encodePointCloud2(scan);
-    ros2::PointCloud2 cloud;
-    cloud.header = {due, frame};  // the wall clock when the scan is due, as a driver stamps it
-    cloud.width = static_cast<std::uint32_t>(scan.size());
-    cloud.fields = data.fields;
-    cloud.point_step = data.point_step;
-    cloud.row_step = cloud.width * cloud.point_step;
-    cloud.data = data.data;
-    node.publish(topic, cloud);
+    // Stamped with the wall clock when the scan is due, as a driver stamps it.
+    node.publish(topic, ros2::toPointCloud2(scan, {due, frame}));
     ++sent;
   }
   fmt::print("play: {} scans published in {:.1f} s; scan i stamped {:.6f} + (t_i - {:.6f}) / {}\n",

@@ -341,16 +341,6 @@ struct RobotPlayer {
 
 // ---- live, on ROS 2 -------------------------------------------------------------------
 
-/// `name` with each "{robot}" replaced by the robot's name.
-std::string named(std::string name, const std::string& robot) {
-  constexpr std::string_view kTag = "{robot}";
-  for (std::size_t at = name.find(kTag); at != std::string::npos; at = name.find(kTag, at)) {
-    name.replace(at, kTag.size(), robot);
-    at += robot.size();
-  }
-  return name;
-}
-
 /// A robot fed by its LiDAR driver over ROS 2, publishing what it estimates
 /// while it runs, with the same swarm traffic as a robot playing a dataset.
 /// Scans that arrive while the front-end is busy are dropped and counted (the
@@ -524,15 +514,7 @@ struct LiveRobot {
     for (const Eigen::Vector3d& p : registration::voxelDownsample(points, ros.map_voxel)) {
       map.points.push_back(p.cast<float>());
     }
-    const io::PointCloud2Data data = io::encodePointCloud2(map);
-    ros2::PointCloud2 cloud;
-    cloud.header = {stamp, ros.map_frame};
-    cloud.width = static_cast<std::uint32_t>(map.size());
-    cloud.fields = data.fields;
-    cloud.point_step = data.point_step;
-    cloud.row_step = cloud.width * cloud.point_step;
-    cloud.data = data.data;
-    ros_node.publish(ros.map_topic, cloud);
+    ros_node.publish(ros.map_topic, ros2::toPointCloud2(map, {stamp, ros.map_frame}));
 
     // The accepted inter-robot loops, as lines between the two keyframes.
     const backend::PoseGraph graph = node.graph();

@@ -274,15 +274,7 @@ void writeRos2Seeds(const std::filesystem::path& dir, const dcl::core::PointClou
     few.points.push_back(scan.points[i]);
     few.intensity.push_back(scan.intensity.empty() ? 0.0F : scan.intensity[i]);
   }
-  const dcl::io::PointCloud2Data points = dcl::io::encodePointCloud2(few);
-  PointCloud2 cloud;
-  cloud.header = {100.5, "velodyne"};
-  cloud.width = static_cast<std::uint32_t>(few.size());
-  cloud.fields = points.fields;
-  cloud.point_step = points.point_step;
-  cloud.row_step = cloud.width * cloud.point_step;
-  cloud.data = points.data;
-  write(dir, "cloud.cdr", encode(cloud));
+  write(dir, "cloud.cdr", encode(toPointCloud2(few, {100.5, "velodyne"})));
   Odometry odometry;
   odometry.header = {100.5, "odom"};
   odometry.child_frame_id = "base_link";

@@ -46,15 +46,7 @@ PointCloud2 cloudMessage() {
     few.points.push_back(scan.points[i]);
     few.intensity.push_back(scan.intensity[i]);
   }
-  const io::PointCloud2Data points = io::encodePointCloud2(few);
-  PointCloud2 m;
-  m.header = {kStamp, "velodyne"};
-  m.width = static_cast<std::uint32_t>(few.size());
-  m.fields = points.fields;
-  m.point_step = points.point_step;
-  m.row_step = m.width * m.point_step;
-  m.data = points.data;
-  return m;
+  return toPointCloud2(few, {kStamp, "velodyne"});
 }
 
 Odometry odometryMessage() {

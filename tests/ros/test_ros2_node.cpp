@@ -81,14 +81,7 @@ TEST(Ros2Node, TwoNodesExchangeOdometryAndAFullScan) {
 
   // A whole HDL-64 scan (about 2.9 MB) as a driver sends it, best effort.
   const core::PointCloud scan = test::kittiScan(0);
-  const io::PointCloud2Data points = io::encodePointCloud2(scan);
-  PointCloud2 cloud;
-  cloud.header = {1317384506.5, "velodyne"};
-  cloud.width = static_cast<std::uint32_t>(scan.size());
-  cloud.fields = points.fields;
-  cloud.point_step = points.point_step;
-  cloud.row_step = cloud.width * cloud.point_step;
-  cloud.data = points.data;
+  const PointCloud2 cloud = toPointCloud2(scan, {1317384506.5, "velodyne"});
   a.advertise<PointCloud2>(topic("points"), Qos::sensor_data);
   std::optional<core::PointCloud> received;
   b.subscribe<PointCloud2>(topic("points"), Qos::sensor_data, [&](PointCloud2&& m) {

@@ -42,6 +42,10 @@ struct PointCloud2 {
   [[nodiscard]] io::PointCloud2View view() const;
 };
 
+/// `cloud` as a PointCloud2 stamped `header`: one row, the layout of
+/// io::encodePointCloud2. Throws core::Error if its channels differ in length.
+PointCloud2 toPointCloud2(const core::PointCloud& cloud, Header header);
+
 /// nav_msgs/Odometry: the pose of child_frame_id in header.frame_id, its twist
 /// in child_frame_id; covariances row-major in (x, y, z, roll, pitch, yaw).
 struct Odometry {
