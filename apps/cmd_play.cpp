@@ -49,12 +49,12 @@ void runPlay(const PlayOptions& o, const AppConfig& config) {
   const std::string frame = named(config.ros2.sensor_frame, o.robot);
   ros2::Node node(ros2::NodeConfig{o.ros_domain.value_or(config.ros2.domain),
                                    o.interface.value_or(config.ros2.interface)});
-  node.advertise<ros2::PointCloud2>(topic, ros2::Qos::sensor_data);
+  node.advertise<msg::PointCloud2>(topic, ros2::Qos::sensor_data);
   // A perfect front-end for trying the external odometry: the ground truth.
   const std::string odometry_topic = named(o.odometry, o.robot);
   const core::Trajectory truth =
       o.odometry.empty() ? core::Trajectory{} : io::readGroundTruth(spec, *index);
-  if (!o.odometry.empty()) node.advertise<ros2::Odometry>(odometry_topic, ros2::Qos::reliable);
+  if (!o.odometry.empty()) node.advertise<msg::Odometry>(odometry_topic, ros2::Qos::reliable);
   // Best effort: scans sent before anyone listens are gone.
   const double wait_until = unixNow() + o.wait;
   while (stopSignal() == 0 && node.matched(topic) == 0 && unixNow() < wait_until)
@@ -71,7 +71,7 @@ void runPlay(const PlayOptions& o, const AppConfig& config) {
       std::this_thread::sleep_for(std::chrono::duration<double>(std::min(0.05, due - unixNow())));
     if (!o.odometry.empty()) {
       if (const auto pose = truth.at(scans->stamp(i))) {
-        ros2::Odometry m;
+        msg::Odometry m;
         m.header = {due, named(config.ros2.odom_frame, o.robot)};
         m.child_frame_id = named(config.ros2.base_frame, o.robot);
         m.pose = *pose;
@@ -80,7 +80,7 @@ void runPlay(const PlayOptions& o, const AppConfig& config) {
     }
     const core::PointCloud scan = scans->scan(i);
     // Stamped with the wall clock when the scan is due, as a driver stamps it.
-    node.publish(topic, ros2::toPointCloud2(scan, {due, frame}));
+    node.publish(topic, msg::toPointCloud2(scan, {due, frame}));
     ++sent;
   }
   fmt::print("play: {} scans published in {:.1f} s; scan i stamped {:.6f} + (t_i - {:.6f}) / {}\n",

@@ -428,7 +428,7 @@ struct LiveRobot {
     return stamp + *stamp_offset;
   }
 
-  void onCloud(ros2::PointCloud2&& m) {
+  void onCloud(msg::PointCloud2&& m) {
     ++received;
     core::PointCloud cloud;
     try {
@@ -442,7 +442,7 @@ struct LiveRobot {
     waiting = Waiting{nodeStamp(m.header.stamp), std::move(cloud), unixNow()};
   }
 
-  void onOdometry(ros2::Odometry&& m) {
+  void onOdometry(msg::Odometry&& m) {
     ++odometry_received;
     if (!external->append(nodeStamp(m.header.stamp), m.pose)) ++odometry_refused;
   }
@@ -474,13 +474,13 @@ struct LiveRobot {
     const core::Keyframe& k = keyframes.back();
     const Eigen::Isometry3d T_map_base = node.estimate(k.id);
     const double stamp = rosStamp(k.stamp);
-    ros2::Odometry odometry;
+    msg::Odometry odometry;
     odometry.header = {stamp, ros.map_frame};
     odometry.child_frame_id = ros.base_frame;
     odometry.pose = T_map_base;
     odometry.pose_covariance = k.covariance;
     ros_node.publish(ros.odometry_topic, odometry);
-    ros2::TFMessage tf;
+    msg::TFMessage tf;
     tf.transforms.resize(2);
     tf.transforms[0].header = {stamp, ros.map_frame};
     tf.transforms[0].child_frame_id = ros.odom_frame;
@@ -496,7 +496,7 @@ struct LiveRobot {
     if (look() < next_publish || keyframes.empty()) return;
     next_publish = now + ros.publish_period;
     const double stamp = rosStamp(keyframes.back().stamp);
-    ros2::Path path;
+    msg::Path path;
     path.header = {stamp, ros.map_frame};
     for (const core::Keyframe& k : keyframes) {
       path.poses.push_back({{rosStamp(k.stamp), ros.map_frame}, node.estimate(k.id)});
@@ -514,14 +514,14 @@ struct LiveRobot {
     for (const Eigen::Vector3d& p : registration::voxelDownsample(points, ros.map_voxel)) {
       map.points.push_back(p.cast<float>());
     }
-    ros_node.publish(ros.map_topic, ros2::toPointCloud2(map, {stamp, ros.map_frame}));
+    ros_node.publish(ros.map_topic, msg::toPointCloud2(map, {stamp, ros.map_frame}));
 
     // The accepted inter-robot loops, as lines between the two keyframes.
     const backend::PoseGraph graph = node.graph();
-    ros2::Marker lines;
+    msg::Marker lines;
     lines.header = {stamp, ros.map_frame};
     lines.ns = "inter_robot_loops";
-    lines.type = ros2::Marker::kLineList;
+    lines.type = msg::Marker::kLineList;
     lines.scale = {0.3, 0.0, 0.0};
     lines.color = {1.0F, 0.5F, 0.0F, 1.0F};
     for (const robot::InterLoop& loop : node.interLoops()) {
@@ -531,10 +531,10 @@ struct LiveRobot {
       lines.points.push_back(graph.estimate(loop.factor.from).translation());
       lines.points.push_back(graph.estimate(loop.factor.to).translation());
     }
-    ros2::Marker clear;
+    msg::Marker clear;
     clear.header = lines.header;
-    clear.action = ros2::Marker::kDeleteAll;
-    ros_node.publish(ros.loops_topic, ros2::MarkerArray{{clear, lines}});
+    clear.action = msg::Marker::kDeleteAll;
+    ros_node.publish(ros.loops_topic, msg::MarkerArray{{clear, lines}});
   }
 
   std::string note() const {
@@ -573,20 +573,20 @@ struct LiveRobot {
 
   /// Runs until a signal; returns false (a live robot ends only when told to).
   bool run() {
-    ros_node.subscribe<ros2::PointCloud2>(ros.points, ros2::Qos::sensor_data,
-                                          [this](ros2::PointCloud2&& m) { onCloud(std::move(m)); });
+    ros_node.subscribe<msg::PointCloud2>(ros.points, ros2::Qos::sensor_data,
+                                         [this](msg::PointCloud2&& m) { onCloud(std::move(m)); });
     if (external != nullptr) {
       // Best effort matches any writer; deep enough for a fast front-end's
       // poses between two scans' work.
-      ros_node.subscribe<ros2::Odometry>(
+      ros_node.subscribe<msg::Odometry>(
           ros.odometry_in, ros2::Qos::sensor_data,
-          [this](ros2::Odometry&& m) { onOdometry(std::move(m)); }, 1000);
+          [this](msg::Odometry&& m) { onOdometry(std::move(m)); }, 1000);
     }
-    ros_node.advertise<ros2::Odometry>(ros.odometry_topic, ros2::Qos::reliable);
-    ros_node.advertise<ros2::TFMessage>("/tf", ros2::Qos::reliable);
-    ros_node.advertise<ros2::Path>(ros.path_topic, ros2::Qos::transient_local);
-    ros_node.advertise<ros2::PointCloud2>(ros.map_topic, ros2::Qos::transient_local);
-    ros_node.advertise<ros2::MarkerArray>(ros.loops_topic, ros2::Qos::transient_local);
+    ros_node.advertise<msg::Odometry>(ros.odometry_topic, ros2::Qos::reliable);
+    ros_node.advertise<msg::TFMessage>("/tf", ros2::Qos::reliable);
+    ros_node.advertise<msg::Path>(ros.path_topic, ros2::Qos::transient_local);
+    ros_node.advertise<msg::PointCloud2>(ros.map_topic, ros2::Qos::transient_local);
+    ros_node.advertise<msg::MarkerArray>(ros.loops_topic, ros2::Qos::transient_local);
     fmt::print("robot {}: reading {} on ROS 2 domain {}; publishing {}, {}, {}, {} and /tf\n",
                o.robot, ros.points, ros.domain, ros.odometry_topic, ros.path_topic, ros.map_topic,
                ros.loops_topic);

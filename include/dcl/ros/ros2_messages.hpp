@@ -1,124 +1,33 @@
 #pragma once
 
-// The ROS 2 messages a robot reads and publishes, as values, and their wire
-// form as rmw_cyclonedds puts it on DDS: XCDR1 (plain CDR) after the 4-byte
+// The wire form of the ROS messages (messages.hpp) on ROS 2, as
+// rmw_cyclonedds puts them on DDS: XCDR1 (plain CDR) after the 4-byte
 // encapsulation header, little-endian when written. The types on the wire are
 // generated from idl/ros2/*.idl; nothing here needs a ROS 2 installation.
 //
 // Decoding accepts either byte order and refuses (core::Error naming the type
 // and what is wrong) bytes that do not hold one whole message of the type.
 
-#include <Eigen/Core>
-#include <Eigen/Geometry>
 #include <cstdint>
 #include <span>
-#include <string>
 #include <string_view>
 #include <vector>
 
-#include <dcl/io/point_cloud2.hpp>
+#include <dcl/ros/messages.hpp>
 
 namespace dcl::ros2 {
 
-/// std_msgs/Header; the stamp in seconds (builtin_interfaces/Time on the wire).
-struct Header {
-  double stamp = 0.0;
-  std::string frame_id{};
-};
-
-/// sensor_msgs/PointCloud2 (io::decodePointCloud2 reads its points).
-struct PointCloud2 {
-  Header header{};
-  std::uint32_t height = 1;
-  std::uint32_t width = 0;
-  std::vector<io::PointField> fields{};
-  bool is_bigendian = false;
-  std::uint32_t point_step = 0;
-  std::uint32_t row_step = 0;
-  std::vector<std::uint8_t> data{};
-  bool is_dense = true;
-
-  /// The cloud's fields and data borrowed, for io::decodePointCloud2.
-  [[nodiscard]] io::PointCloud2View view() const;
-};
-
-/// `cloud` as a PointCloud2 stamped `header`: one row, the layout of
-/// io::encodePointCloud2. Throws core::Error if its channels differ in length.
-PointCloud2 toPointCloud2(const core::PointCloud& cloud, Header header);
-
-/// nav_msgs/Odometry: the pose of child_frame_id in header.frame_id, its twist
-/// in child_frame_id; covariances row-major in (x, y, z, roll, pitch, yaw).
-struct Odometry {
-  Header header{};
-  std::string child_frame_id{};
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  Eigen::Matrix<double, 6, 6> pose_covariance = Eigen::Matrix<double, 6, 6>::Zero();
-  Eigen::Vector3d linear_velocity = Eigen::Vector3d::Zero();   ///< m/s
-  Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  ///< rad/s
-  Eigen::Matrix<double, 6, 6> twist_covariance = Eigen::Matrix<double, 6, 6>::Zero();
-};
-
-/// geometry_msgs/PoseStamped.
-struct PoseStamped {
-  Header header{};
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-};
-
-/// nav_msgs/Path.
-struct Path {
-  Header header{};
-  std::vector<PoseStamped> poses{};
-};
-
-/// geometry_msgs/TransformStamped: child_frame_id's pose in header.frame_id.
-struct TransformStamped {
-  Header header{};
-  std::string child_frame_id{};
-  Eigen::Isometry3d transform = Eigen::Isometry3d::Identity();
-};
-
-/// tf2_msgs/TFMessage.
-struct TFMessage {
-  std::vector<TransformStamped> transforms{};
-};
-
-/// std_msgs/ColorRGBA, each in [0, 1].
-struct ColorRGBA {
-  float r = 0.0F;
-  float g = 0.0F;
-  float b = 0.0F;
-  float a = 1.0F;
-
-  bool operator==(const ColorRGBA&) const = default;
-};
-
-/// visualization_msgs/Marker, the fields a robot fills (the texture, UV and
-/// mesh fields are written empty and ignored when read).
-struct Marker {
-  static constexpr std::int32_t kLineList = 5;
-  static constexpr std::int32_t kSphereList = 7;
-  static constexpr std::int32_t kAdd = 0;
-  static constexpr std::int32_t kDeleteAll = 3;
-
-  Header header{};
-  std::string ns{};
-  std::int32_t id = 0;
-  std::int32_t type = kLineList;
-  std::int32_t action = kAdd;
-  Eigen::Isometry3d pose = Eigen::Isometry3d::Identity();
-  Eigen::Vector3d scale = Eigen::Vector3d::Ones();
-  ColorRGBA color{};
-  double lifetime = 0.0;  ///< s, 0: forever
-  bool frame_locked = false;
-  std::vector<Eigen::Vector3d> points{};
-  std::vector<ColorRGBA> colors{};
-  std::string text{};
-};
-
-/// visualization_msgs/MarkerArray.
-struct MarkerArray {
-  std::vector<Marker> markers{};
-};
+using msg::ColorRGBA;
+using msg::Header;
+using msg::Marker;
+using msg::MarkerArray;
+using msg::Odometry;
+using msg::Path;
+using msg::PointCloud2;
+using msg::PoseStamped;
+using msg::TFMessage;
+using msg::toPointCloud2;  // the values, by the names of their ROS 2 codec
+using msg::TransformStamped;
 
 /// The DDS type name of each message, as ROS 2 names it on the wire.
 template <class Message>
