@@ -24,6 +24,7 @@
 #include <dcl/place/descriptor_codec.hpp>
 #include <dcl/place/lidar_iris.hpp>
 #include <dcl/registration/cloud_codec.hpp>
+#include <dcl/ros/ros1_messages.hpp>
 #include <dcl/ros/ros2_messages.hpp>
 
 #include "app_config.hpp"
@@ -297,6 +298,42 @@ void writeRos2Seeds(const std::filesystem::path& dir, const dcl::core::PointClou
   write(dir, "markers.cdr", encode(markers));
 }
 
+/// The ROS 1 target's seeds: a scan as a driver publishes it, and each message a robot publishes.
+void writeRos1Seeds(const std::filesystem::path& dir, const dcl::core::PointCloud& scan) {
+  namespace ros1 = dcl::ros1;
+  namespace msg = dcl::msg;
+  dcl::core::PointCloud few;
+  for (std::size_t i = 0; i < scan.size(); i += scan.size() / 64) {
+    few.points.push_back(scan.points[i]);
+    few.intensity.push_back(scan.intensity.empty() ? 0.0F : scan.intensity[i]);
+  }
+  write(dir, "cloud.ros1", ros1::encode(msg::toPointCloud2(few, {100.5, "velodyne"}), 7));
+  msg::Odometry odometry;
+  odometry.header = {100.5, "odom"};
+  odometry.child_frame_id = "base_link";
+  odometry.pose.translation() = Eigen::Vector3d(1, 2, 3);
+  write(dir, "odometry.ros1", ros1::encode(odometry, 7));
+  const msg::PoseStamped pose{{100.5, "map"}, odometry.pose};
+  write(dir, "pose.ros1", ros1::encode(pose, 7));
+  msg::Path path;
+  path.header = {100.5, "map"};
+  path.poses = {{{100.0, "map"}, odometry.pose}, pose};
+  write(dir, "path.ros1", ros1::encode(path, 7));
+  msg::TFMessage tf;
+  tf.transforms = {{{100.5, "map"}, "odom", odometry.pose}};
+  write(dir, "tf.ros1", ros1::encode(tf));
+  msg::Marker loops;
+  loops.header = {100.5, "map"};
+  loops.ns = "loops";
+  loops.lifetime = 1.5;
+  loops.points = {{0, 0, 0}, {1, 1, 0}};
+  loops.colors = {{1, 0, 0, 1}, {0, 1, 0, 1}};
+  loops.text = "a-b";
+  msg::MarkerArray markers;
+  markers.markers = {loops};
+  write(dir, "markers.ros1", ros1::encode(markers));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -346,6 +383,7 @@ int main(int argc, char** argv) {
                              std::filesystem::copy_options::overwrite_existing);
   writeConfigSeeds(dir / "config");
   writeRos2Seeds(dir / "ros2", scan);
+  writeRos1Seeds(dir / "ros1", scan);
   std::printf("seeds written to %s\n", dir.c_str());
   return 0;
 }

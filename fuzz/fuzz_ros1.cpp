@@ -1,0 +1,36 @@
+// libFuzzer target: ROS 1 messages as a robot receives them (the bytes of one
+// message, as on a ROS 1 connection or in a bag): PointCloud2 and its points,
+// Odometry, PoseStamped, Path, TFMessage, MarkerArray. Bytes may be refused
+// only with core::Error.
+#include <cstdint>
+#include <span>
+
+#include <dcl/core/error.hpp>
+#include <dcl/io/point_cloud2.hpp>
+#include <dcl/ros/ros1_messages.hpp>
+
+namespace {
+
+template <class M, class Then>
+void decodeAs(std::span<const std::uint8_t> bytes, Then&& then) {
+  try {
+    then(dcl::ros1::decode<M>(bytes));
+  } catch (const dcl::core::Error&) {
+  }
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const std::span<const std::uint8_t> bytes(data, size);
+  using namespace dcl::msg;
+  decodeAs<PointCloud2>(bytes, [](const PointCloud2& m) {
+    (void)dcl::io::decodePointCloud2(m.view(), m.header.stamp, /*drop_nan=*/true);
+  });
+  decodeAs<Odometry>(bytes, [](const Odometry&) {});
+  decodeAs<PoseStamped>(bytes, [](const PoseStamped&) {});
+  decodeAs<Path>(bytes, [](const Path&) {});
+  decodeAs<TFMessage>(bytes, [](const TFMessage&) {});
+  decodeAs<MarkerArray>(bytes, [](const MarkerArray&) {});
+  return 0;
+}
