@@ -128,11 +128,13 @@ struct RobotSection {
   }
 };
 
-/// A robot on ROS 2 (`robot --ros2`): where its scans come from and what it
-/// publishes. "{robot}" in a name stands for the robot's name.
-struct Ros2Section {
-  std::uint32_t domain = 0;        ///< DDS domain (ROS_DOMAIN_ID)
-  std::string interface {};        ///< network interface ('': default)
+/// A live robot on ROS 2 or ROS 1 (`robot --ros2`, `--ros1`): where its scans
+/// come from and what it publishes. "{robot}" in a name stands for the robot's name.
+struct RosSection {
+  std::uint32_t domain = 0;        ///< ROS 2: DDS domain (ROS_DOMAIN_ID)
+  std::string interface {};        ///< ROS 2: network interface ('': default)
+  std::string master_uri{};        ///< ROS 1: the master ('': ROS_MASTER_URI)
+  double master_wait = 10.0;       ///< ROS 1: s to wait for the master
   std::string points = "/points";  ///< sensor_msgs/PointCloud2 in
   std::string odometry_in{};       ///< nav_msgs/Odometry of an external front-end (empty: built-in)
   double odometry_wait = 0.5;      ///< s a scan waits for the external odometry to reach it
@@ -150,12 +152,19 @@ struct Ros2Section {
 
   template <class Visitor>
   void visit(Visitor& v) {
-    v.field("domain", domain, "DDS domain of the ROS 2 topics (ROS_DOMAIN_ID)")
+    v.field("domain", domain, "ROS 2: DDS domain of the topics (ROS_DOMAIN_ID)")
         .atMost(comm::DdsConfig::kMaxDomain);
-    v.field("interface", interface, "network interface with multicast discovery (empty: default)")
+    v.field("interface", interface,
+            "ROS 2: network interface with multicast discovery (empty: default)")
         .rule(interface.size() <= comm::DdsConfig::kMaxInterfaceChars &&
                   comm::isPlainName(interface, "_-.:"),
               "must be empty or a network interface name");
+    v.field("master_uri", master_uri,
+            "ROS 1: the master, e.g. http://localhost:11311 (empty: ROS_MASTER_URI)")
+        .rule(master_uri.empty() || (master_uri.starts_with("http://") && master_uri.size() <= 255),
+              "must be empty or an http:// URI");
+    v.field("master_wait", master_wait, "ROS 1: s to wait for the master at the start")
+        .within(0.0, 3600.0);
     v.field("points", points, "sensor_msgs/PointCloud2 topic of the robot's LiDAR");
     v.field("odometry_in", odometry_in,
             "nav_msgs/Odometry topic of the robot's own front-end (empty: the built-in LiDAR "
@@ -178,7 +187,7 @@ struct Ros2Section {
   }
 };
 
-/// `name` (a ros2 section's topic or frame) with each "{robot}" replaced by `robot`.
+/// `name` (a ros section's topic or frame) with each "{robot}" replaced by `robot`.
 std::string named(std::string name, const std::string& robot);
 
 /// Everything `dcl-slam` can be configured with.
@@ -199,7 +208,7 @@ struct AppConfig {
   comm::DdsConfig dds;                            ///< Cyclone DDS between robot processes
   RobotSection robot;                             ///< a robot node's timers
   swarm::MapConfig map;                           ///< the map of swarm runs
-  Ros2Section ros2;                               ///< a robot on ROS 2
+  RosSection ros;                                 ///< a live robot on ROS 2 or ROS 1
 
   template <class Visitor>
   void visit(Visitor& v) {
@@ -221,7 +230,8 @@ struct AppConfig {
     v.section("dds", dds, "Cyclone DDS between robot processes");
     v.section("robot", robot, "a robot node's optimisation timers");
     v.section("map", map, "the map of swarm runs (map.ply)");
-    v.section("ros2", ros2, "a robot on ROS 2 (robot --ros2): topics, frames, rates");
+    v.section("ros", ros,
+              "a live robot on ROS 2 or ROS 1 (robot --ros2, --ros1): topics, frames, rates");
   }
 };
 

@@ -27,10 +27,10 @@ namespace {
 struct PlayOptions {
   std::string dataset;
   std::string robot;
-  std::optional<std::string> points;        ///< default: ros2.points
+  std::optional<std::string> points;        ///< default: ros.points
   std::string odometry;                     ///< also the ground truth as nav_msgs/Odometry here
-  std::optional<std::uint32_t> ros_domain;  ///< default: ros2.domain
-  std::optional<std::string> interface;     ///< default: ros2.interface
+  std::optional<std::uint32_t> ros_domain;  ///< default: ros.domain
+  std::optional<std::string> interface;     ///< default: ros.interface
   double rate = 1.0;                        ///< dataset seconds per wall second
   std::size_t max_frames = 0;               ///< 0: all
   double wait = 10.0;                       ///< s to wait for a subscriber before the first scan
@@ -45,10 +45,10 @@ void runPlay(const PlayOptions& o, const AppConfig& config) {
   const auto scans = sim::openRobotScans(spec, *index);
   const std::size_t frames =
       o.max_frames > 0 ? std::min(o.max_frames, scans->size()) : scans->size();
-  const std::string topic = named(o.points.value_or(config.ros2.points), o.robot);
-  const std::string frame = named(config.ros2.sensor_frame, o.robot);
-  ros2::Node node(ros2::NodeConfig{o.ros_domain.value_or(config.ros2.domain),
-                                   o.interface.value_or(config.ros2.interface)});
+  const std::string topic = named(o.points.value_or(config.ros.points), o.robot);
+  const std::string frame = named(config.ros.sensor_frame, o.robot);
+  ros2::Node node(ros2::NodeConfig{o.ros_domain.value_or(config.ros.domain),
+                                   o.interface.value_or(config.ros.interface)});
   node.advertise<msg::PointCloud2>(topic, ros2::Qos::sensor_data);
   // A perfect front-end for trying the external odometry: the ground truth.
   const std::string odometry_topic = named(o.odometry, o.robot);
@@ -72,8 +72,8 @@ void runPlay(const PlayOptions& o, const AppConfig& config) {
     if (!o.odometry.empty()) {
       if (const auto pose = truth.at(scans->stamp(i))) {
         msg::Odometry m;
-        m.header = {due, named(config.ros2.odom_frame, o.robot)};
-        m.child_frame_id = named(config.ros2.base_frame, o.robot);
+        m.header = {due, named(config.ros.odom_frame, o.robot)};
+        m.child_frame_id = named(config.ros.base_frame, o.robot);
         m.pose = *pose;
         node.publish(odometry_topic, m);
       }
@@ -98,14 +98,14 @@ void addPlayCommand(CLI::App& app, const AppConfig& config) {
       "as its LiDAR driver would: a stream for robot --ros2, RViz or Foxglove");
   cmd->add_option("--dataset", o->dataset, "dataset folder (dataset.yaml)")->required();
   cmd->add_option("--robot", o->robot, "the robot's name in the dataset")->required();
-  cmd->add_option("--points", o->points, "topic (default: ros2.points, {robot} replaced)");
+  cmd->add_option("--points", o->points, "topic (default: ros.points, {robot} replaced)");
   cmd->add_option("--odometry", o->odometry,
                   "also publish the robot's ground truth on this topic (nav_msgs/Odometry, before "
                   "each scan), a perfect front-end for robot --ros2 --odometry");
-  cmd->add_option("--ros-domain", o->ros_domain, "DDS domain, ROS_DOMAIN_ID (default: ros2.domain)")
+  cmd->add_option("--ros-domain", o->ros_domain, "DDS domain, ROS_DOMAIN_ID (default: ros.domain)")
       ->check(CLI::Range(0, 232));
   cmd->add_option("--interface", o->interface,
-                  "network interface with multicast discovery, e.g. lo (default: ros2.interface)");
+                  "network interface with multicast discovery, e.g. lo (default: ros.interface)");
   cmd->add_option("--rate", o->rate, "dataset seconds per wall second")->capture_default_str();
   cmd->add_option("--max-frames", o->max_frames, "scans to publish at most (0: all)")
       ->check(kNonNegative)

@@ -36,6 +36,7 @@
 #include <dcl/odometry/external_odometry.hpp>
 #include <dcl/registration/voxel_filter.hpp>
 #include <dcl/robot/robot_node.hpp>
+#include <dcl/ros/ros1_node.hpp>
 #include <dcl/ros/ros2_node.hpp>
 #include <dcl/sim/sim_source.hpp>
 
@@ -72,13 +73,17 @@ struct RobotOptions {
   double meter_interval = 1.0;  ///< s of swarm time per traffic bin (the radio section's)
   comm::DdsConfig dds;
   bool json = false;
-  // Live on ROS 2 instead of a dataset:
+  // Live on ROS 2 or ROS 1 instead of a dataset:
   bool ros2 = false;                  ///< scans from a ROS 2 topic
+  bool ros1 = false;                  ///< scans from a ROS 1 topic
   std::optional<int> id;              ///< the robot's id in the swarm (0..254), live only
-  std::optional<std::string> points;  ///< the cloud topic (default: ros2.points)
+  std::optional<std::string> points;  ///< the cloud topic (default: ros.points)
   std::optional<std::string>
-      odometry_in;  ///< an external front-end's topic (default: ros2.odometry_in)
-  std::optional<std::uint32_t> ros_domain;  ///< default: ros2.domain
+      odometry_in;  ///< an external front-end's topic (default: ros.odometry_in)
+  std::optional<std::uint32_t> ros_domain;  ///< ROS 2; default: ros.domain
+  std::optional<std::string> ros_master;    ///< ROS 1; default: ros.master_uri, ROS_MASTER_URI
+
+  [[nodiscard]] bool live() const { return ros2 || ros1; }
 };
 
 // ---- time --------------------------------------------------------------------------
@@ -339,17 +344,52 @@ struct RobotPlayer {
   }
 };
 
-// ---- live, on ROS 2 -------------------------------------------------------------------
+// ---- live, on ROS 2 or ROS 1 ----------------------------------------------------------
 
-/// A robot fed by its LiDAR driver over ROS 2, publishing what it estimates
-/// while it runs, with the same swarm traffic as a robot playing a dataset.
-/// Scans that arrive while the front-end is busy are dropped and counted (the
-/// newest waits, never a queue); it runs until SIGINT or SIGTERM.
+/// ROS 2 for a live robot: a DDS participant in the ros section's domain.
+struct Ros2Middleware {
+  using Node = ros2::Node;
+  using Qos = ros2::Qos;
+  static constexpr const char* kName = "ROS 2";
+
+  static ros2::NodeConfig nodeConfig(const RosSection& ros, const std::string& /*robot*/) {
+    return {ros.domain, ros.interface};
+  }
+  static void checkTopic(const std::string& topic) { (void)ros2::ddsTopicName(topic); }
+  static std::string where(const RosSection& ros) {
+    return fmt::format("ROS 2 domain {}", ros.domain);
+  }
+};
+
+/// ROS 1 for a live robot: a roscpp node named dcl_slam_ROBOT.
+struct Ros1Middleware {
+  using Node = ros1::Node;
+  using Qos = ros1::Qos;
+  static constexpr const char* kName = "ROS 1";
+
+  static ros1::NodeConfig nodeConfig(const RosSection& ros, const std::string& robot) {
+    return {"dcl_slam_" + robot, ros.master_uri, ros.master_wait};
+  }
+  static void checkTopic(const std::string& topic) { ros1::checkTopicName(topic); }
+  static std::string where(const RosSection& ros) {
+    return ros.master_uri.empty() ? std::string("ROS 1 (ROS_MASTER_URI)")
+                                  : fmt::format("ROS 1 master {}", ros.master_uri);
+  }
+};
+
+/// A robot fed by its LiDAR driver over ROS 2 or ROS 1 (Middleware), publishing
+/// what it estimates while it runs, with the same swarm traffic as a robot
+/// playing a dataset. Scans that arrive while the front-end is busy are dropped
+/// and counted (the newest waits, never a queue); it runs until SIGINT or SIGTERM.
+template <class Middleware>
 struct LiveRobot {
+  using Node = typename Middleware::Node;
+  using Qos = typename Middleware::Qos;
+
   const RobotOptions& o;
-  Ros2Section ros;  ///< names resolved for this robot
+  RosSection ros;  ///< names resolved for this robot
   std::uint8_t id;
-  ros2::Node ros_node;
+  Node ros_node;
   std::uint32_t incarnation;
   comm::DdsTransport dds;
   MeteredTransport metered;
@@ -379,22 +419,28 @@ struct LiveRobot {
 
   LiveRobot(const RobotOptions& options, const AppConfig& app, std::uint8_t robot)
       : o(options),
-        ros(resolved(app.ros2, options)),
+        ros(resolved(app.ros, options)),
         id(robot),
-        ros_node(ros2::NodeConfig{ros.domain, ros.interface}),
+        ros_node(checkedTopics(ros, Middleware::nodeConfig(ros, options.robot))),
         incarnation(clockIncarnation()),
         dds(core::RobotId(robot), o.dds),
         metered(dds, o.meter_interval),
         node(metered, robotConfig(app), incarnation, frontEnd(ros, app.external, external)),
-        joined_at(unixNow()) {
+        joined_at(unixNow()) {}
+
+  /// `config` once every topic name is one the middleware takes (a bad name
+  /// fails before the node joins).
+  template <class Config>
+  static Config checkedTopics(const RosSection& ros, Config config) {
     for (const std::string* topic : {&ros.points, &ros.odometry_topic, &ros.path_topic,
                                      &ros.map_topic, &ros.loops_topic, &ros.odometry_in}) {
-      if (!topic->empty()) (void)ros2::ddsTopicName(*topic);  // a bad name fails before any work
+      if (!topic->empty()) Middleware::checkTopic(*topic);
     }
+    return config;
   }
 
   /// An external front-end fed from ros.odometry_in, or none (the built-in odometry).
-  static std::unique_ptr<odometry::Odometry> frontEnd(const Ros2Section& ros,
+  static std::unique_ptr<odometry::Odometry> frontEnd(const RosSection& ros,
                                                       const odometry::ExternalOdometryConfig& c,
                                                       odometry::ExternalOdometry*& raw) {
     if (ros.odometry_in.empty()) return nullptr;
@@ -404,10 +450,11 @@ struct LiveRobot {
     return front_end;
   }
 
-  static Ros2Section resolved(Ros2Section s, const RobotOptions& o) {
+  static RosSection resolved(RosSection s, const RobotOptions& o) {
     if (o.points) s.points = *o.points;
     if (o.odometry_in) s.odometry_in = *o.odometry_in;
     if (o.ros_domain) s.domain = *o.ros_domain;
+    if (o.ros_master) s.master_uri = *o.ros_master;
     if (s.interface.empty()) s.interface = o.dds.interface;  // one network for both, unless told
     for (std::string* name : {&s.points, &s.odometry_in, &s.map_frame, &s.odom_frame, &s.base_frame,
                               &s.odometry_topic, &s.path_topic, &s.map_topic, &s.loops_topic}) {
@@ -491,9 +538,10 @@ struct LiveRobot {
     ros_node.publish("/tf", tf);
   }
 
-  void publishMaps() {
+  /// The path, local map and loop markers, every ros.publish_period (or at once).
+  void publishMaps(bool at_once = false) {
     const auto& keyframes = node.keyframes();
-    if (look() < next_publish || keyframes.empty()) return;
+    if ((!at_once && look() < next_publish) || keyframes.empty()) return;
     next_publish = now + ros.publish_period;
     const double stamp = rosStamp(keyframes.back().stamp);
     msg::Path path;
@@ -553,7 +601,7 @@ struct LiveRobot {
     }
     RobotReport& r = out.report;
     r.robot = id;
-    r.dataset = "ROS 2 " + ros.points;
+    r.dataset = std::string(Middleware::kName) + " " + ros.points;
     r.incarnation = incarnation;
     r.epoch = joined_at;
     r.frames = frames;
@@ -563,6 +611,9 @@ struct LiveRobot {
     r.counters["scans_received"] = static_cast<double>(received);
     r.counters["scans_dropped"] = static_cast<double>(dropped);
     r.counters["scans_refused"] = static_cast<double>(refused);
+    std::size_t messages_refused = 0;
+    for (const auto& [topic, refusals] : ros_node.refused()) messages_refused += refusals.first;
+    r.counters["messages_refused"] = static_cast<double>(messages_refused);
     if (external != nullptr) {
       r.counters["scans_without_odometry"] = static_cast<double>(without_odometry);
       r.counters["odometry_received"] = static_cast<double>(odometry_received);
@@ -573,23 +624,23 @@ struct LiveRobot {
 
   /// Runs until a signal; returns false (a live robot ends only when told to).
   bool run() {
-    ros_node.subscribe<msg::PointCloud2>(ros.points, ros2::Qos::sensor_data,
-                                         [this](msg::PointCloud2&& m) { onCloud(std::move(m)); });
+    ros_node.template subscribe<msg::PointCloud2>(
+        ros.points, Qos::sensor_data, [this](msg::PointCloud2&& m) { onCloud(std::move(m)); });
     if (external != nullptr) {
       // Best effort matches any writer; deep enough for a fast front-end's
       // poses between two scans' work.
-      ros_node.subscribe<msg::Odometry>(
-          ros.odometry_in, ros2::Qos::sensor_data,
+      ros_node.template subscribe<msg::Odometry>(
+          ros.odometry_in, Qos::sensor_data,
           [this](msg::Odometry&& m) { onOdometry(std::move(m)); }, 1000);
     }
-    ros_node.advertise<msg::Odometry>(ros.odometry_topic, ros2::Qos::reliable);
-    ros_node.advertise<msg::TFMessage>("/tf", ros2::Qos::reliable);
-    ros_node.advertise<msg::Path>(ros.path_topic, ros2::Qos::transient_local);
-    ros_node.advertise<msg::PointCloud2>(ros.map_topic, ros2::Qos::transient_local);
-    ros_node.advertise<msg::MarkerArray>(ros.loops_topic, ros2::Qos::transient_local);
-    fmt::print("robot {}: reading {} on ROS 2 domain {}; publishing {}, {}, {}, {} and /tf\n",
-               o.robot, ros.points, ros.domain, ros.odometry_topic, ros.path_topic, ros.map_topic,
-               ros.loops_topic);
+    ros_node.template advertise<msg::Odometry>(ros.odometry_topic, Qos::reliable);
+    ros_node.template advertise<msg::TFMessage>("/tf", Qos::reliable);
+    ros_node.template advertise<msg::Path>(ros.path_topic, Qos::transient_local);
+    ros_node.template advertise<msg::PointCloud2>(ros.map_topic, Qos::transient_local);
+    ros_node.template advertise<msg::MarkerArray>(ros.loops_topic, Qos::transient_local);
+    fmt::print("robot {}: reading {} on {}; publishing {}, {}, {}, {} and /tf\n", o.robot,
+               ros.points, Middleware::where(ros), ros.odometry_topic, ros.path_topic,
+               ros.map_topic, ros.loops_topic);
     std::fflush(stdout);
     const auto tick = std::chrono::milliseconds(static_cast<std::int64_t>(kTickPeriod * 1000.0));
     while (stopSignal() == 0) {
@@ -600,6 +651,11 @@ struct LiveRobot {
       publishMaps();
     }
     node.stop();
+    // The final estimates, as the outputs will hold them, and time for the
+    // middleware's threads to send them before the node leaves.
+    publishKeyframe();
+    publishMaps(/*at_once=*/true);
+    std::this_thread::sleep_for(std::chrono::milliseconds(300));
     return false;
   }
 };
@@ -620,9 +676,13 @@ void printSummary(const RobotReport& r, const std::string& folder) {
   fmt::print("outputs in {}\n", folder);
 }
 
-/// A robot on ROS 2: `robot --ros2 --robot NAME --id N`.
+/// A robot on ROS 2 or ROS 1: `robot --ros2 --robot NAME --id N` (or --ros1).
+template <class Middleware>
 void runLiveRobot(const RobotOptions& o, const AppConfig& config) {
-  if (!o.id) throw core::Error("robot --ros2: give the robot's id in the swarm with --id (0..254)");
+  if (!o.id) {
+    throw core::Error(fmt::format("robot --{}: give the robot's id in the swarm with --id (0..254)",
+                                  o.ros1 ? "ros1" : "ros2"));
+  }
   // The name is a folder of --out and part of topic and frame names.
   const bool plain = !o.robot.empty() && o.robot.size() <= 64 &&
                      std::all_of(o.robot.begin(), o.robot.end(), [](char c) {
@@ -636,7 +696,7 @@ void runLiveRobot(const RobotOptions& o, const AppConfig& config) {
   }
   const StopSignals signals;
   OutputFolder output(o.out + "/" + o.robot, o.force, {"robot.log"});
-  LiveRobot live(o, config, static_cast<std::uint8_t>(*o.id));
+  LiveRobot<Middleware> live(o, config, static_cast<std::uint8_t>(*o.id));
   live.run();
   const RobotOutputs outputs = live.outputs();
   writeRobotOutputs(output.path(), outputs);
@@ -650,6 +710,10 @@ void runLiveRobot(const RobotOptions& o, const AppConfig& config) {
     std::fprintf(stderr, "dcl-slam robot %s: %zu clouds on %s were unreadable (the last: %s)\n",
                  o.robot.c_str(), live.refused, live.ros.points.c_str(), live.last_refusal.c_str());
   }
+  for (const auto& [topic, refusals] : live.ros_node.refused()) {
+    std::fprintf(stderr, "dcl-slam robot %s: %zu messages on %s were refused (the last: %s)\n",
+                 o.robot.c_str(), refusals.first, topic.c_str(), refusals.second.c_str());
+  }
   std::fprintf(stderr, "dcl-slam robot %s: stopped by signal %d; outputs in %s\n", o.robot.c_str(),
                stopSignal(), output.out().c_str());
   throw CLI::RuntimeError(128 + stopSignal());
@@ -657,16 +721,30 @@ void runLiveRobot(const RobotOptions& o, const AppConfig& config) {
 
 void runRobot(const RobotOptions& o, const AppConfig& config) {
   validate(o);
-  if (o.ros2) {
-    if (!o.dataset.empty()) throw core::Error("robot: --dataset or --ros2, not both");
-    runLiveRobot(o, config);
+  if (o.ros2 && o.ros1) throw core::Error("robot: --ros2 or --ros1, not both");
+  if (o.live()) {
+    if (!o.dataset.empty()) {
+      throw core::Error(
+          fmt::format("robot: --dataset or --{}, not both", o.ros1 ? "ros1" : "ros2"));
+    }
+    if (o.ros1 && o.ros_domain) throw core::Error("robot: --ros-domain is for ROS 2 (--ros2)");
+    if (o.ros2 && o.ros_master) throw core::Error("robot: --ros-master is for ROS 1 (--ros1)");
+    if (o.ros_master && !o.ros_master->starts_with("http://")) {
+      throw core::Error(
+          fmt::format("--ros-master '{}': a master's URI is http://HOST:PORT", *o.ros_master));
+    }
+    if (o.ros1)
+      runLiveRobot<Ros1Middleware>(o, config);
+    else
+      runLiveRobot<Ros2Middleware>(o, config);
     return;
   }
   if (o.dataset.empty())
-    throw core::Error("robot: --dataset is required (or --ros2 for a live robot)");
-  if (o.id || o.points || o.ros_domain || o.odometry_in)
+    throw core::Error("robot: --dataset is required (or --ros2 / --ros1 for a live robot)");
+  if (o.id || o.points || o.ros_domain || o.odometry_in || o.ros_master)
     throw core::Error(
-        "robot: --id, --points, --odometry and --ros-domain are for a live robot (--ros2)");
+        "robot: --id, --points, --odometry, --ros-domain and --ros-master are for a live robot "
+        "(--ros2, --ros1)");
   const StopSignals signals;
   io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const std::size_t index = robotIndex(spec, o.robot);
@@ -703,7 +781,7 @@ void addRobotCommand(CLI::App& app, const AppConfig& config) {
       "one robot of a dataset in this process over Cyclone DDS: plays its scans on the swarm "
       "clock ((wall clock - epoch) * rate) with its peers in other processes, then writes its "
       "trajectories, graph and robot.json into OUT/ROBOT");
-  cmd->add_option("--dataset", o->dataset, "dataset folder (dataset.yaml); or --ros2");
+  cmd->add_option("--dataset", o->dataset, "dataset folder (dataset.yaml); or --ros2 / --ros1");
   cmd->add_option("--robot", o->robot, "the robot's name in the dataset")->required();
   cmd->add_option("--out", o->out, "output folder (the robot writes into OUT/ROBOT)")
       ->capture_default_str();
@@ -734,18 +812,23 @@ void addRobotCommand(CLI::App& app, const AppConfig& config) {
   cmd->add_flag("--json", o->json, "print robot.json at the end instead of the summary line");
   addForceFlag(*cmd, o->force);
   cmd->add_flag("--ros2", o->ros2,
-                "live: scans from a ROS 2 topic (the config's ros2 section), estimates published "
+                "live: scans from a ROS 2 topic (the config's ros section), estimates published "
                 "on ROS 2 while it runs, until Ctrl-C");
+  cmd->add_flag("--ros1", o->ros1,
+                "live: the same on ROS 1, through roscpp (a master at ROS_MASTER_URI or "
+                "--ros-master)");
   cmd->add_option("--id", o->id, "live: the robot's id in the swarm, 0..254, unique")
       ->check(CLI::Range(0, 254));
   cmd->add_option("--points", o->points,
-                  "live: sensor_msgs/PointCloud2 topic (default: ros2.points)");
+                  "live: sensor_msgs/PointCloud2 topic (default: ros.points)");
   cmd->add_option("--odometry", o->odometry_in,
                   "live: nav_msgs/Odometry topic of the robot's own front-end, used instead of the "
-                  "built-in odometry (default: ros2.odometry_in)");
+                  "built-in odometry (default: ros.odometry_in)");
   cmd->add_option("--ros-domain", o->ros_domain,
-                  "live: DDS domain of the ROS 2 topics, ROS_DOMAIN_ID (default: ros2.domain)")
+                  "live: DDS domain of the ROS 2 topics, ROS_DOMAIN_ID (default: ros.domain)")
       ->check(CLI::Range(0, 232));
+  cmd->add_option("--ros-master", o->ros_master,
+                  "live: the ROS 1 master's URI (default: ros.master_uri, else ROS_MASTER_URI)");
   cmd->callback([o, &config] { runRobot(*o, config); });
 }
 
