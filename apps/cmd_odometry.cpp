@@ -30,6 +30,7 @@
 #include <dcl/sim/sim_source.hpp>
 
 #include "commands.hpp"
+#include "front_end.hpp"
 #include "option_checks.hpp"
 #include "output_folder.hpp"
 
@@ -87,10 +88,16 @@ std::pair<double, double> frameTimes(const io::ScanSource& scans, std::size_t fr
   return {first, last};
 }
 
-/// The odometry of the run; an external one must cover some of the frames' times.
+/// The odometry of the run: --external's, else the dataset's front-end for the
+/// robot, else the built-in one; an external one must cover some of the frames' times.
 std::unique_ptr<odometry::Odometry> makeOdometry(const OdometryOptions& o, const AppConfig& config,
-                                                 const io::ScanSource& scans, std::size_t frames) {
-  if (o.external.empty()) return std::make_unique<odometry::LidarOdometry>(config.odometry);
+                                                 const RobotData& data, std::size_t frames) {
+  const io::ScanSource& scans = *data.scans;
+  if (o.external.empty()) {
+    if (auto front_end = datasetFrontEnd(data.spec, data.index, scans, frames, config.external))
+      return front_end;
+    return std::make_unique<odometry::LidarOdometry>(config.odometry);
+  }
   odometry::ExternalOdometryConfig external = config.external;
   external.file = o.external;
   external.format = o.external_format;
@@ -294,7 +301,7 @@ void runOdometry(const OdometryOptions& o, const AppConfig& config) {
   tbb::global_control limit(tbb::global_control::max_allowed_parallelism, threads);
   const std::size_t frames =
       o.max_frames > 0 ? std::min(o.max_frames, data.scans->size()) : data.scans->size();
-  auto odometry = makeOdometry(o, config, *data.scans, frames);
+  auto odometry = makeOdometry(o, config, data, frames);
   odometry::LocalMapperConfig mapper_config = config.mapper;
   mapper_config.loop_closure = mapper_config.loop_closure && !o.no_loops;
   odometry::LocalMapper mapper(core::RobotId(static_cast<std::uint8_t>(data.index)), mapper_config);

@@ -41,6 +41,7 @@
 #include <dcl/sim/sim_source.hpp>
 
 #include "commands.hpp"
+#include "front_end.hpp"
 #include "option_checks.hpp"
 #include "output_folder.hpp"
 #include "process.hpp"
@@ -247,7 +248,7 @@ struct RobotPlayer {
   double now = -std::numeric_limits<double>::infinity();  ///< the swarm clock at the last look
 
   RobotPlayer(const RobotOptions& options, io::DatasetSpec dataset, std::size_t robot,
-              const robot::RobotConfig& config)
+              const robot::RobotConfig& config, const odometry::ExternalOdometryConfig& external)
       : o(options),
         spec(std::move(dataset)),
         index(robot),
@@ -257,7 +258,8 @@ struct RobotPlayer {
         incarnation(clockIncarnation()),
         dds(core::RobotId(static_cast<std::uint8_t>(index)), o.dds),
         metered(dds, o.meter_interval),
-        node(metered, config, incarnation),
+        node(metered, config, incarnation,
+             datasetFrontEnd(spec, index, *scans, o.max_frames, external)),
         joined_at(unixNow()) {}
 
   /// s on the swarm clock at which scan `i` is due.
@@ -753,7 +755,7 @@ void runRobot(const RobotOptions& o, const AppConfig& config) {
   // and put in place whole; the swarm's log of this process stays in it.
   OutputFolder output(o.out + "/" + o.robot, o.force, {"robot.log"});
   const std::string& folder = output.out();
-  RobotPlayer player(o, std::move(spec), index, robotConfig(config));
+  RobotPlayer player(o, std::move(spec), index, robotConfig(config), config.external);
   const bool finished = player.run();
   const RobotOutputs outputs = player.outputs(!finished);
   writeRobotOutputs(output.path(), outputs);

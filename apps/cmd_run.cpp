@@ -32,6 +32,7 @@
 #include <dcl/swarm/swarm_run.hpp>
 
 #include "commands.hpp"
+#include "front_end.hpp"
 #include "option_checks.hpp"
 #include "output_folder.hpp"
 #include "robot_outputs.hpp"
@@ -84,14 +85,16 @@ std::map<std::string, double> parseLeaves(const std::vector<std::string>& values
 }
 
 std::vector<swarm::SwarmMember> membersOf(const io::DatasetSpec& spec,
-                                          const std::map<std::string, double>& leave) {
+                                          const std::map<std::string, double>& leave,
+                                          const AppConfig& config, std::size_t max_frames) {
   std::vector<std::unique_ptr<io::ScanSource>> scans = sim::openDatasetScans(spec);
   std::vector<swarm::SwarmMember> members;
   for (std::size_t r = 0; r < spec.robots.size(); ++r) {
     core::Trajectory truth;
     if (!spec.robots[r].ground_truth.empty()) truth = io::readGroundTruth(spec, r);
+    auto front_end = datasetFrontEnd(spec, r, *scans[r], max_frames, config.external);
     members.push_back({spec.robots[r].name, std::move(scans[r]), spec.robots[r].start_time,
-                       std::move(truth), std::nullopt});
+                       std::move(truth), std::nullopt, std::move(front_end)});
     if (const auto it = leave.find(spec.robots[r].name); it != leave.end())
       members.back().leave_time = it->second;
   }
@@ -337,7 +340,7 @@ Json runSwarmDataset(const std::string& dataset, const std::string& out, std::si
   const RunOptions o{dataset, out, max_frames, threads, settle, leave, false, false};
   const io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const std::map<std::string, double> leave_times = parseLeaves(o.leave, spec);
-  std::vector<swarm::SwarmMember> members = membersOf(spec, leave_times);
+  std::vector<swarm::SwarmMember> members = membersOf(spec, leave_times, config, o.max_frames);
   std::vector<core::Trajectory> truths;
   for (const swarm::SwarmMember& m : members) truths.push_back(m.ground_truth);
 

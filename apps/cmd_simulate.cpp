@@ -18,6 +18,8 @@
 #include <dcl/core/error.hpp>
 #include <dcl/core/progress.hpp>
 #include <dcl/io/dataset.hpp>
+#include <dcl/io/pose_file.hpp>
+#include <dcl/sim/drifting_odometry.hpp>
 #include <dcl/sim/export.hpp>
 #include <dcl/sim/lidar_model.hpp>
 #include <dcl/sim/presets.hpp>
@@ -36,19 +38,20 @@ using Clock = std::chrono::steady_clock;
 using Json = nlohmann::ordered_json;
 
 struct SimulateOptions {
-  std::string preset;                 ///< preset name
-  std::string out;                    ///< dataset folder to write
-  std::string preview;                ///< dataset folder to draw
-  std::string data;                   ///< the shared data folder (KITTI ground truth)
-  std::uint64_t seed = 1;             ///< seeds world, routes and noise
-  int robots = 0;                     ///< 0: the preset's count
-  std::string sensor;                 ///< "": the preset's sensor
-  std::string export_format;          ///< "", kitti or bag
-  std::size_t max_scans = 0;          ///< > 0: cut every route to this many scans
-  bool no_motion_distortion = false;  ///< scans without motion distortion
-  bool no_noise = false;              ///< scans without range noise and dropout
-  bool perfect_lasers = false;        ///< every robot's lasers exactly on the published table
-  bool force = false;                 ///< replace --out even when it holds other files
+  std::string preset;                  ///< preset name
+  std::string out;                     ///< dataset folder to write
+  std::string preview;                 ///< dataset folder to draw
+  std::string data;                    ///< the shared data folder (KITTI ground truth)
+  std::uint64_t seed = 1;              ///< seeds world, routes and noise
+  int robots = 0;                      ///< 0: the preset's count
+  std::string sensor;                  ///< "": the preset's sensor
+  std::string export_format;           ///< "", kitti or bag
+  std::size_t max_scans = 0;           ///< > 0: cut every route to this many scans
+  bool no_motion_distortion = false;   ///< scans without motion distortion
+  bool no_noise = false;               ///< scans without range noise and dropout
+  bool perfect_lasers = false;         ///< every robot's lasers exactly on the published table
+  std::vector<double> odometry_drift;  ///< % and deg/m: a drifting external front-end per robot
+  bool force = false;                  ///< replace --out even when it holds other files
 };
 
 struct BenchSimOptions {
@@ -139,16 +142,35 @@ void cutRoutes(sim::Preset& preset, std::size_t n) {
   }
 }
 
+/// Each robot's ground truth as a drifting front-end reports it
+/// (odometry/ROBOT.tum), named as the robot's `odometry` in dataset.yaml.
+io::DatasetSpec addDriftingOdometry(const std::string& folder, io::DatasetSpec spec,
+                                    const SimulateOptions& o) {
+  for (std::size_t r = 0; r < spec.robots.size(); ++r) {
+    io::RobotSpec& robot = spec.robots[r];
+    if (robot.ground_truth.empty()) continue;
+    const sim::OdometryDrift drift{.translation_percent = o.odometry_drift[0],
+                                   .rotation_deg_per_m = o.odometry_drift[1],
+                                   .seed = o.seed * 1000 + r};
+    const core::Trajectory reported = sim::driftingOdometry(io::readGroundTruth(spec, r), drift);
+    robot.odometry = {.file = "odometry/" + robot.name + ".tum", .format = "tum"};
+    io::writeTumPoses((fs::path(folder) / robot.odometry.file).string(), reported);
+  }
+  io::writeDataset(folder, spec);
+  return io::readDataset(folder);
+}
+
 void runSimulate(const SimulateOptions& o) {
   const auto format = exportFormat(o.export_format);  // check before the slow part
   sim::Preset preset = sim::makePreset(
       o.preset, {.data_dir = o.data, .seed = o.seed, .robots = o.robots, .sensor = o.sensor});
   cutRoutes(preset, o.max_scans);
   OutputFolder out(o.out, o.force);
-  const io::DatasetSpec spec = sim::writeSimDataset(out.path(), preset,
-                                                    {.motion_distortion = !o.no_motion_distortion,
-                                                     .noise = !o.no_noise,
-                                                     .calibration_error = !o.perfect_lasers});
+  io::DatasetSpec spec = sim::writeSimDataset(out.path(), preset,
+                                              {.motion_distortion = !o.no_motion_distortion,
+                                               .noise = !o.no_noise,
+                                               .calibration_error = !o.perfect_lasers});
+  if (!o.odometry_drift.empty()) spec = addDriftingOdometry(out.path(), spec, o);
   printSummary(preset, spec, out.path(), out.out());
   if (format) exportScans(spec, out.path(), out.out(), *format);
   out.commit();
@@ -294,6 +316,13 @@ void addSimulateCommand(CLI::App& app) {
   cmd->add_flag("--perfect-lasers", o->perfect_lasers,
                 "every robot's lasers exactly where the published beam table says (no "
                 "calibration error)");
+  cmd->add_option("--odometry-drift", o->odometry_drift,
+                  "PERCENT,DEG_PER_M: also give each robot an external front-end, its ground truth "
+                  "drifting by PERCENT % of the distance and DEG_PER_M deg per metre "
+                  "(odometry/ROBOT.tum, dataset.yaml's odometry), e.g. 1,0.01")
+      ->delimiter(',')
+      ->expected(2)
+      ->check(CLI::NonNegativeNumber);
   addForceFlag(*cmd, o->force);
   cmd->callback([o] { runSimulateCommand(*o); });
 }

@@ -210,6 +210,28 @@ ScanSourceSpec readScans(MapReader scans, const DatasetReadOptions& options) {
   return out;
 }
 
+FrontEndSpec readFrontEnd(MapReader odometry, const DatasetReadOptions& options) {
+  FrontEndSpec out;
+  out.file = requiredPath(odometry, "file", "front-end", options);
+  if (auto f = odometry.optional("format")) {
+    out.format = odometry.string("format", *f);
+    if (out.format != "tum" && out.format != "kitti" && out.format != "bag" && out.format != "auto")
+      odometry.fail(f->Mark(), odometry.keyOf("format"), "expected tum, kitti, bag or auto");
+  }
+  const bool bag = out.format == "bag" || (out.format == "auto" && out.file.ends_with(".bag"));
+  if (bag) {
+    const auto topic = odometry.optional("topic");
+    if (!topic) {
+      odometry.fail(odometry.mark(), odometry.keyOf("topic"),
+                    "missing (poses from a bag need their topic)");
+    }
+    out.topic = odometry.string("topic", *topic);
+  }
+  if (out.format == "kitti") out.times = requiredPath(odometry, "times", "kitti", options);
+  odometry.finish();
+  return out;
+}
+
 RobotSpec readRobot(MapReader robot, const DatasetReadOptions& options) {
   RobotSpec out;
   const YAML::Node name = robot.required("name");
@@ -232,6 +254,8 @@ RobotSpec readRobot(MapReader robot, const DatasetReadOptions& options) {
     out.ground_truth = robot.string("ground_truth", *gt);
     checkInside(robot, "ground_truth", *gt, out.ground_truth, options);
   }
+  if (auto f = robot.optional("odometry"))
+    out.odometry = readFrontEnd(robot.map("odometry", *f), options);
   if (auto t = robot.optional("start_time")) {
     out.start_time = robot.number("start_time", *t);
     // Seconds on the swarm clock, not a Unix time: a run would wait that long.
@@ -330,6 +354,15 @@ void writeRobot(std::ostream& out, const RobotSpec& robot) {
   out << "    start_time: " << fmt::format("{}", robot.start_time) << "  # s on the swarm clock\n";
   if (!robot.ground_truth.empty())
     out << "    ground_truth: " << scalar(robot.ground_truth) << "\n";
+  if (!robot.odometry.empty()) {
+    out << "    odometry:  # an external front-end's poses, instead of the built-in odometry\n";
+    out << "      file: " << scalar(robot.odometry.file) << "\n";
+    out << "      format: " << scalar(robot.odometry.format) << "  # tum | kitti | bag | auto\n";
+    if (!robot.odometry.topic.empty())
+      out << "      topic: " << scalar(robot.odometry.topic) << "\n";
+    if (!robot.odometry.times.empty())
+      out << "      times: " << scalar(robot.odometry.times) << "\n";
+  }
   out << "    scans:\n";
   out << "      type: " << toString(robot.scans.type) << "  # sim | kitti | bag\n";
   if (robot.scans.type == ScanSourceType::kitti) {

@@ -124,6 +124,15 @@ ExportResult exportDataset(const io::DatasetSpec& spec, const std::string& folde
       robot.ground_truth = robot.name + "/ground_truth.tum";
       copyFile(spec.resolve(spec.robots[r].ground_truth), (fs::path(folder) / robot.ground_truth));
     }
+    // An external front-end's poses go along.
+    if (const io::FrontEndSpec& from = spec.robots[r].odometry; !from.empty()) {
+      robot.odometry.file = robot.name + "/odometry" + fs::path(from.file).extension().string();
+      copyFile(spec.resolve(from.file), fs::path(folder) / robot.odometry.file);
+      if (!from.times.empty()) {
+        robot.odometry.times = robot.name + "/odometry_times.txt";
+        copyFile(spec.resolve(from.times), fs::path(folder) / robot.odometry.times);
+      }
+    }
   }
   io::writeDataset(folder, copy);
   return {.dataset = io::readDataset(folder),

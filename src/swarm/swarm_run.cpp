@@ -204,7 +204,8 @@ SwarmResult runSwarm(std::vector<SwarmMember> members, const SwarmConfig& config
     if (m.frames > 0) end = std::max(end, m.swarmTime(m.frames - 1));
     const core::RobotId id(static_cast<std::uint8_t>(r));
     m.transport = std::make_unique<BufferedTransport>(radio.endpoint(id));
-    m.node = std::make_unique<robot::RobotNode>(*m.transport, config.robot);
+    m.node = std::make_unique<robot::RobotNode>(*m.transport, config.robot, /*incarnation=*/1,
+                                                std::move(m.spec.front_end));
     m.map_clouds = KeyframeClouds(config.map.voxel);
   }
   end += config.drain;

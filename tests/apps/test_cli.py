@@ -1599,6 +1599,83 @@ class OutputFolders(unittest.TestCase):
         self.assertEqual([f for f in os.listdir(self.tmp.name) if ".partial-" in f], [])
 
 
+def tum_poses(path):
+    """{stamp: (x, y, z)} of a TUM file."""
+    with open(path) as f:
+        rows = [line.split() for line in f if line.strip() and not line.startswith("#")]
+    return {float(r[0]): tuple(float(v) for v in r[1:4]) for r in rows}
+
+
+def steps(poses):
+    """The distances between consecutive poses, in stamp order."""
+    stamps = sorted(poses)
+    return [math.dist(poses[a], poses[b]) for a, b in zip(stamps, stamps[1:])]
+
+
+class ExternalFrontEnd(unittest.TestCase):
+    """A swarm whose robots bring their own front-end (dataset.yaml's `odometry`):
+    `simulate --odometry-drift` makes one from the ground truth, drifting, and
+    `run`, `robot` and `odometry` take its poses instead of the built-in odometry."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.dataset = os.path.join(cls.tmp.name, "ds")
+        run("simulate", "--preset", "demo", "--robots", "2", "--max-scans", "200",
+            "--odometry-drift", "1,0.01", "--out", cls.dataset)
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.tmp.cleanup()
+
+    def assertFollowsTheFrontEnd(self, folder, robot):
+        """The robot's odometry (keyframes' T_odom_keyframe) moves as the
+        front-end's file does between the same stamps."""
+        front_end = tum_poses(os.path.join(self.dataset, "odometry", robot + ".tum"))
+        odometry = tum_poses(os.path.join(folder, "odometry.tum"))
+        self.assertGreater(len(odometry), 8, robot)
+        for stamp in odometry:
+            self.assertIn(round(stamp, 6), {round(t, 6) for t in front_end}, robot)
+        kept = {t: front_end[min(front_end, key=lambda u: abs(u - t))] for t in odometry}
+        for ours, theirs in zip(steps(odometry), steps(kept)):
+            self.assertAlmostEqual(ours, theirs, delta=1e-3, msg=robot)
+
+    def test_the_dataset_names_each_robots_front_end(self):
+        with open(os.path.join(self.dataset, "dataset.yaml")) as f:
+            text = f.read()
+        for robot in ("a", "b"):
+            self.assertIn(f"file: odometry/{robot}.tum", text)
+            self.assertTrue(os.path.exists(os.path.join(self.dataset, "odometry", robot + ".tum")))
+
+    def test_run_takes_their_poses(self):
+        out = os.path.join(self.tmp.name, "run")
+        _, stdout, _ = run("run", "--dataset", self.dataset, "--out", out, "--json")
+        metrics = json.loads(stdout)
+        for r in metrics["robots"]:
+            self.assertFollowsTheFrontEnd(os.path.join(out, r["name"]), r["name"])
+            self.assertLess(r["ate_rmse"], 1.0, r["name"])
+
+    def test_odometry_and_robot_take_their_poses(self):
+        out = os.path.join(self.tmp.name, "odometry")
+        run("odometry", "--dataset", self.dataset, "--robot", "b", "--out", out, "--no-loops")
+        self.assertFollowsTheFrontEnd(out, "b")
+        out = os.path.join(self.tmp.name, "robot")
+        run("robot", "--dataset", self.dataset, "--robot", "a", "--out", out, "--max-frames", "120",
+            "--rate", "20", "--linger", "1", "--settle", "0", "--domain", "178", "--interface", "lo",
+            "--swarm", f"ext-{os.getpid()}")
+        self.assertFollowsTheFrontEnd(os.path.join(out, "a"), "a")
+
+    def test_a_missing_front_end_file_is_named(self):
+        broken = os.path.join(self.tmp.name, "broken")
+        shutil.copytree(self.dataset, broken)
+        os.remove(os.path.join(broken, "odometry", "b.tum"))
+        code, _, err = run("run", "--dataset", broken, "--out", os.path.join(self.tmp.name, "x"),
+                           check=False)
+        self.assertNotEqual(code, 0)
+        self.assertIn("b.tum", err)
+        self.assertFalse(os.path.exists(os.path.join(self.tmp.name, "x")))
+
+
 class Run(unittest.TestCase):
     """dcl-slam run: the demo campus, three robots over the simulated radio,
     the first 150 scans of each, twice: the outputs are complete and the

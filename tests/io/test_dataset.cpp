@@ -34,11 +34,13 @@ DatasetSpec mixedSpec() {
       .name = "b",
       .scans = {.type = ScanSourceType::kitti, .folder = "b/velodyne", .times = "b/times.txt"},
       .ground_truth = "b/gt.tum",
-      .start_time = 12.300000000000001};
+      .start_time = 12.300000000000001,
+      .odometry = {.file = "b/lio.txt", .format = "kitti", .times = "b/times.txt"}};
   RobotSpec c{.name = "c",
               .scans = {.type = ScanSourceType::bag, .file = "c.bag", .topic = "/points"},
               .ground_truth = "",
-              .start_time = 1.0 / 3.0};
+              .start_time = 1.0 / 3.0,
+              .odometry = {.file = "c.bag", .format = "auto", .topic = "/lio/odom"}};
   spec.robots = {a, b, c};
   return spec;
 }
@@ -92,6 +94,13 @@ TEST(Dataset, RoundTripKeepsEveryField) {
   EXPECT_EQ(back.robots[2].scans.topic, "/points");
   EXPECT_EQ(back.robots[2].start_time, 1.0 / 3.0);
   EXPECT_EQ(back.robots[2].ground_truth, "");
+  EXPECT_TRUE(back.robots[0].odometry.empty());
+  EXPECT_EQ(back.robots[1].odometry.file, "b/lio.txt");
+  EXPECT_EQ(back.robots[1].odometry.format, "kitti");
+  EXPECT_EQ(back.robots[1].odometry.times, "b/times.txt");
+  EXPECT_EQ(back.robots[2].odometry.file, "c.bag");
+  EXPECT_EQ(back.robots[2].odometry.format, "auto");
+  EXPECT_EQ(back.robots[2].odometry.topic, "/lio/odom");
   EXPECT_EQ(back.folder, dir.file("ds"));
   EXPECT_EQ(back.resolve("b/gt.tum"), dir.file("ds") + "/b/gt.tum");
   EXPECT_EQ(back.robotIndex("c"), 2u);
@@ -223,6 +232,24 @@ TEST(Dataset, RejectsBrokenFilesNamingLineAndKey) {
        edited("type: kitti\n      folder: a/velodyne\n      times: a/times.txt",
               "type: bag\n      file: ../x.bag\n      topic: /points"),
        {":11:", "field 'robots[0].scans.file'", "outside the dataset folder"}},
+      {"front-end format",
+       edited("    scans:\n", "    odometry: {file: a.tum, format: csv}\n    scans:\n"),
+       {":9:", "field 'robots[0].odometry.format'", "tum, kitti, bag or auto"}},
+      {"front-end bag without its topic",
+       edited("    scans:\n", "    odometry: {file: lio.bag}\n    scans:\n"),
+       {":9:", "field 'robots[0].odometry.topic'", "need their topic"}},
+      {"front-end kitti without times",
+       edited("    scans:\n", "    odometry: {file: lio.txt, format: kitti}\n    scans:\n"),
+       {":9:", "field 'robots[0].odometry.times'", "missing"}},
+      {"front-end climbing out",
+       edited("    scans:\n", "    odometry: {file: ../lio.tum}\n    scans:\n"),
+       {":9:", "field 'robots[0].odometry.file'", "outside the dataset folder"}},
+      {"front-end without a file",
+       edited("    scans:\n", "    odometry: {format: tum}\n    scans:\n"),
+       {":9:", "field 'robots[0].odometry.file'", "missing"}},
+      {"front-end unknown key",
+       edited("    scans:\n", "    odometry: {file: a.tum, topik: /x}\n    scans:\n"),
+       {":9:", "field 'robots[0].odometry.topik'", "unknown key"}},
       {"sim seed",
        edited("robots:\n", "sim:\n  world: city\n  seed: -1\nrobots:\n"),
        {":8:", "field 'sim.seed'", "integer"}},

@@ -53,12 +53,28 @@ struct ScanSourceSpec {
   std::string topic{};   ///< bag: the sensor_msgs/PointCloud2 topic; default none
 };
 
+/// The poses of a robot's own front-end (LIO-SAM, FAST-LIO2, wheel and IMU
+/// odometry, ...), taken instead of the built-in LiDAR odometry, the scans then
+/// serving keyframe clouds, descriptors and verification only. The poses are
+/// T_world_body on the scans' clock, read as odometry::ExternalOdometryConfig
+/// reads them (the configuration's `external` section gives T_body_sensor and
+/// the noise model).
+struct FrontEndSpec {
+  std::string file{};           ///< TUM or KITTI poses, or a bag (relative); "" when none
+  std::string format = "auto";  ///< tum | kitti | bag | auto (by extension: .bag, else tum)
+  std::string topic{};          ///< bag: nav_msgs/Odometry or geometry_msgs/PoseStamped topic
+  std::string times{};          ///< kitti: stamps one a line (relative)
+
+  [[nodiscard]] bool empty() const { return file.empty(); }
+};
+
 /// One robot of a dataset.
 struct RobotSpec {
   std::string name{};          ///< unique within the dataset, e.g. "a"
   ScanSourceSpec scans{};      ///< where its scans come from
   std::string ground_truth{};  ///< TUM file of T_world_sensor (relative); "" when none
   double start_time = 0.0;     ///< s, the robot's start on the swarm clock; default 0
+  FrontEndSpec odometry{};     ///< an external front-end's poses; none: the built-in odometry
 };
 
 /// The kinds of procedural world the simulator builds.

@@ -23,6 +23,7 @@
 #include <dcl/core/keyframe.hpp>
 #include <dcl/core/trajectory.hpp>
 #include <dcl/io/scan_source.hpp>
+#include <dcl/odometry/odometry.hpp>
 #include <dcl/robot/robot_node.hpp>
 #include <dcl/swarm/merged_map.hpp>
 
@@ -53,6 +54,8 @@ struct SwarmMember {
   /// s on the swarm clock at which the robot leaves the swarm for good (a
   /// crash, a dead battery): from then on it takes no scan and says nothing.
   std::optional<double> leave_time;
+  /// Its own front-end (e.g. odometry::ExternalOdometry); none: the built-in LiDAR odometry.
+  std::unique_ptr<odometry::Odometry> front_end{};
 };
 
 /// What a run leaves of one robot.
