@@ -1,4 +1,5 @@
-// `dcl-slam convert`: between scan formats and between pose formats.
+// `dcl-slam convert`: between scan formats and between pose formats, and from
+// the topics of ROS1 bags and ROS 2 bags (MCAP) to either.
 #include <algorithm>
 #include <filesystem>
 #include <optional>
@@ -12,6 +13,7 @@
 #include <dcl/io/file.hpp>
 #include <dcl/io/pose_file.hpp>
 #include <dcl/io/rosbag.hpp>
+#include <dcl/ros/ros2_bag.hpp>
 
 #include "commands.hpp"
 #include "output_folder.hpp"
@@ -76,10 +78,12 @@ void convertPoses(const ConvertOptions& o) {
   fmt::print("{} poses: {} ({}) -> {} ({})\n", trajectory.size(), o.input, o.from, o.output, o.to);
 }
 
-/// Every cloud of a bag topic as numbered files in a folder, with their stamps in times.txt.
+/// Every cloud of a bag topic as numbered files in a folder, with their stamps
+/// in times.txt; `Reader` reads a ROS1 bag or a ROS 2 one (MCAP).
+template <class Reader>
 void convertBagClouds(const ConvertOptions& o) {
   OutputFolder out(o.output, o.force);  // the scans appear together, or not at all
-  io::BagCloudReader reader(o.input, o.topic);
+  Reader reader(o.input, o.topic);
   const fs::path folder(out.path());
   std::vector<double> stamps;
   core::ProgressBar progress("convert", reader.size(), "scans");
@@ -106,8 +110,20 @@ std::string describeTopics(const std::vector<io::BagTopic>& topics) {
   return list;
 }
 
-void convertBag(const ConvertOptions& o) {
-  const auto topics = io::listBagTopics(o.input);
+/// How a ROS1 bag or a ROS 2 bag (MCAP) is read.
+struct BagReaders {
+  std::vector<io::BagTopic> (*topics)(const std::string& path);
+  core::Trajectory (*trajectory)(const std::string& path, const std::string& topic);
+  void (*clouds)(const ConvertOptions& o);
+};
+
+constexpr BagReaders kRos1Bag{&io::listBagTopics, &io::readBagTrajectory,
+                              &convertBagClouds<io::BagCloudReader>};
+constexpr BagReaders kRos2Bag{&ros2::listMcapTopics, &ros2::readMcapTrajectory,
+                              &convertBagClouds<ros2::McapCloudReader>};
+
+void convertBag(const ConvertOptions& o, const BagReaders& bag) {
+  const auto topics = bag.topics(o.input);
   if (o.topic.empty())
     throw core::Error("a bag input needs --topic; its topics:" + describeTopics(topics));
   if (o.cloud_format != "bin" && o.cloud_format != "pcd" && o.cloud_format != "ply") {
@@ -116,15 +132,18 @@ void convertBag(const ConvertOptions& o) {
   const auto it = std::find_if(topics.begin(), topics.end(), [&](const io::BagTopic& t) {
     return t.name == o.topic || t.name == "/" + o.topic || "/" + t.name == o.topic;
   });
-  if (it != topics.end() && it->type == "sensor_msgs/PointCloud2") return convertBagClouds(o);
-  const core::Trajectory trajectory = io::readBagTrajectory(o.input, o.topic);
+  const bool cloud = it != topics.end() && (it->type == "sensor_msgs/PointCloud2" ||
+                                            it->type == "sensor_msgs/msg/PointCloud2");
+  if (cloud) return bag.clouds(o);
+  const core::Trajectory trajectory = bag.trajectory(o.input, o.topic);
   const std::string to = o.to.empty() ? "tum" : o.to;
   io::writePoses(o.output, io::parsePoseFormat(to), trajectory, optionalPath(o.out_times));
   fmt::print("{} poses of {} -> {} ({})\n", trajectory.size(), o.topic, o.output, to);
 }
 
 void runConvert(const ConvertOptions& o) {
-  if (extensionOf(o.input) == ".bag") return convertBag(o);
+  if (extensionOf(o.input) == ".bag") return convertBag(o, kRos1Bag);
+  if (extensionOf(o.input) == ".mcap") return convertBag(o, kRos2Bag);
   if (isCloudFile(o.input)) return convertCloud(o);
   convertPoses(o);
 }
@@ -134,9 +153,10 @@ void runConvert(const ConvertOptions& o) {
 void addConvertCommand(CLI::App& app) {
   auto* cmd = app.add_subcommand(
       "convert",
-      "convert scans (.bin .pcd .ply), pose files (--from/--to kitti|tum) or ROS1 bag topics");
+      "convert scans (.bin .pcd .ply), pose files (--from/--to kitti|tum), or topics of ROS1 "
+      "bags (.bag) and ROS 2 bags (.mcap)");
   auto o = std::make_shared<ConvertOptions>();
-  cmd->add_option("input", o->input, "input file (scan, pose file or .bag)")->required();
+  cmd->add_option("input", o->input, "input file (scan, pose file, .bag or .mcap)")->required();
   cmd->add_option("output", o->output, "output file (or folder, for a bag's scans)")->required();
   cmd->add_option("--from", o->from, "pose format of the input: kitti or tum");
   cmd->add_option("--to", o->to, "pose format of the output: kitti or tum (bags: tum)");

@@ -398,10 +398,11 @@ void addOdometryCommand(CLI::App& app, const AppConfig& config) {
   auto o = std::make_shared<OdometryOptions>();
   addRobotOptions(*cmd, *o);
   cmd->add_option("--out", o->out, "output folder")->capture_default_str();
-  cmd->add_option("--external", o->external,
-                  "poses of an external front-end (TUM, KITTI or ROS1 bag) instead of the "
-                  "built-in LiDAR odometry");
-  cmd->add_option("--external-format", o->external_format, "tum, kitti, bag or auto")
+  cmd->add_option(
+      "--external", o->external,
+      "poses of an external front-end (TUM, KITTI, ROS1 bag or ROS 2 MCAP) instead of the "
+      "built-in LiDAR odometry");
+  cmd->add_option("--external-format", o->external_format, "tum, kitti, bag, mcap or auto")
       ->capture_default_str();
   cmd->add_option("--external-topic", o->external_topic,
                   "bag topic (nav_msgs/Odometry, PoseStamped)");

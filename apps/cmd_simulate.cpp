@@ -127,7 +127,7 @@ void exportScans(const io::DatasetSpec& spec, const std::string& out, const std:
 std::optional<sim::ExportFormat> exportFormat(const std::string& name) {
   if (name.empty()) return std::nullopt;
   const auto format = sim::parseExportFormat(name);
-  if (!format) throw core::Error("--export: '" + name + "' is not kitti or bag");
+  if (!format) throw core::Error("--export: '" + name + "' is not kitti, bag or mcap");
   return format;
 }
 
@@ -303,7 +303,8 @@ void addSimulateCommand(CLI::App& app) {
   cmd->add_option("--robots", o->robots, "number of robots (0: the preset's)")
       ->capture_default_str();
   cmd->add_option("--sensor", o->sensor, "hdl64 or vlp16 (default: the preset's)");
-  cmd->add_option("--export", o->export_format, "also write the scans: kitti (.bin) or bag (ROS1)");
+  cmd->add_option("--export", o->export_format,
+                  "also write the scans: kitti (.bin), bag (ROS1) or mcap (ROS 2)");
   cmd->add_option("--data", o->data,
                   "the shared data folder with KITTI ground truth (or DCL_DATA_DIR)")
       ->capture_default_str();

@@ -18,8 +18,8 @@ io::DatasetReadOptions& datasetReadOptions();
 /// `eval ate`, `eval rpe`: trajectory metrics, evo-compatible.
 void addEvalCommand(CLI::App& app, const AppConfig& config);
 
-/// `convert`: between the scan formats (KITTI .bin, PCD, PLY, ROS1 bag topics)
-/// and the pose formats (KITTI, TUM, ROS1 bag topics).
+/// `convert`: between the scan formats (KITTI .bin, PCD, PLY, ROS1 bag and MCAP
+/// topics) and the pose formats (KITTI, TUM, ROS1 bag and MCAP topics).
 void addConvertCommand(CLI::App& app);
 
 /// `config --dump`: the effective configuration as YAML.
@@ -31,7 +31,8 @@ void addVersionCommand(CLI::App& app);
 /// `demo`: the built-in default run.
 void addDemoCommand(CLI::App& app, const AppConfig& config);
 
-/// `simulate`: a simulated dataset from a preset (`--export` kitti or bag), or `--preview` of one.
+/// `simulate`: a simulated dataset from a preset (`--export` kitti, bag or mcap), or `--preview` of
+/// one.
 void addSimulateCommand(CLI::App& app);
 
 /// `bench sim` (on the `bench` subcommand): the scan stream of a dataset, timed.

@@ -25,6 +25,7 @@
 #include <dcl/place/lidar_iris.hpp>
 #include <dcl/registration/cloud_codec.hpp>
 #include <dcl/ros/ros1_messages.hpp>
+#include <dcl/ros/ros2_bag.hpp>
 #include <dcl/ros/ros2_messages.hpp>
 
 #include "app_config.hpp"
@@ -298,6 +299,32 @@ void writeRos2Seeds(const std::filesystem::path& dir, const dcl::core::PointClou
   write(dir, "markers.cdr", encode(markers));
 }
 
+/// The MCAP target's seeds: small ROS 2 bags as dcl-slam writes them (a few
+/// points, odometry and poses), in each compression, unchunked and without summary.
+void writeMcapSeeds(const std::filesystem::path& dir, const dcl::core::PointCloud& few) {
+  using dcl::io::McapCompression;
+  struct Seed {
+    const char* name;
+    dcl::io::McapWriteOptions options;
+  };
+  for (const Seed& seed :
+       {Seed{"zstd.mcap", {.chunk_size = 512}},
+        Seed{"lz4.mcap", {.compression = McapCompression::lz4, .chunk_size = 512}},
+        Seed{"none.mcap", {.compression = McapCompression::none, .chunk_size = 512}},
+        Seed{"unchunked.mcap", {.chunked = false}},
+        Seed{"no_summary.mcap", {.compression = McapCompression::none, .summary = false}}}) {
+    dcl::ros2::McapBagWriter bag((dir / seed.name).string(), seed.options);
+    for (int k = 0; k < 2; ++k) {
+      const Eigen::Isometry3d T =
+          dcl::core::makePose(Eigen::Vector3d(k, 0, 0), Eigen::Quaterniond::Identity());
+      bag.writeCloud("/points", 100.0 + k, few, "lidar");
+      bag.writeOdometry("/odom", 100.0 + k, T, "odom", "base_link");
+      bag.writePose("/pose", 100.5 + k, T, "map");
+    }
+    bag.close();
+  }
+}
+
 /// The ROS 1 target's seeds: a scan as a driver publishes it, and each message a robot publishes.
 void writeRos1Seeds(const std::filesystem::path& dir, const dcl::core::PointCloud& scan) {
   namespace ros1 = dcl::ros1;
@@ -384,6 +411,7 @@ int main(int argc, char** argv) {
   writeConfigSeeds(dir / "config");
   writeRos2Seeds(dir / "ros2", scan);
   writeRos1Seeds(dir / "ros1", scan);
+  writeMcapSeeds(dir / "mcap", few);
   std::printf("seeds written to %s\n", dir.c_str());
   return 0;
 }

@@ -9,10 +9,11 @@
 
 #include <bzlib.h>
 #include <fmt/format.h>
-#include <lz4frame.h>
 
 #include <dcl/core/error.hpp>
 #include <dcl/io/file.hpp>
+
+#include "decompress.hpp"
 
 namespace dcl::io::detail {
 
@@ -117,42 +118,6 @@ std::pair<std::uint32_t, std::uint64_t> messageKey(const Fields& fields, Fail&& 
   return {*id, (*time & 0xffffffffU) * 1'000'000'000ULL + (*time >> 32)};
 }
 
-/// What one call of a streaming decompressor did.
-struct Step {
-  std::size_t consumed = 0;
-  std::size_t produced = 0;
-  bool done = false;  ///< the stream ended
-};
-
-/// Runs `step(input left, output room)` until the stream `in` ends, growing the
-/// output as it comes, so that a false `size` costs no more memory than the
-/// real content; the content must come to exactly `size` bytes.
-template <class StepFn, class Fail>
-void decompress(std::span<const char> in, std::uint32_t size, std::vector<char>& out, StepFn&& step,
-                Fail&& fail) {
-  const std::size_t limit = std::size_t{size} + 1;  // one byte more shows an overrun
-  out.resize(std::min<std::size_t>(limit, std::size_t{1} << 16));
-  std::size_t produced = 0, consumed = 0;
-  for (;;) {
-    const Step s = step(in.subspan(consumed), std::span<char>(out).subspan(produced));
-    consumed += s.consumed;
-    produced += s.produced;
-    if (s.done) break;
-    if (produced == out.size()) {
-      if (out.size() == limit) break;
-      out.resize(std::min(limit, 2 * out.size()));
-    } else if (consumed == in.size() || (s.consumed == 0 && s.produced == 0)) {
-      fail("compressed content ends before its stream does");
-    }
-  }
-  if (produced != size) {
-    fail(fmt::format("decompresses to {}{} bytes, its header says {}",
-                     produced > size ? "more than " : "", std::min<std::size_t>(produced, size),
-                     size));
-  }
-  out.resize(size);
-}
-
 template <class Fail>
 void decompressBz2(std::span<const char> in, std::uint32_t size, std::vector<char>& out,
                    void* (*allocate)(void*, int, int), void (*release)(void*, void*), void* memory,
@@ -177,30 +142,6 @@ void decompressBz2(std::span<const char> in, std::uint32_t size, std::vector<cha
     }
     return Step{input.size() - stream.avail_in, room.size() - stream.avail_out,
                 rc == BZ_STREAM_END};
-  };
-  decompress(in, size, out, step, fail);
-}
-
-/// An LZ4 frame, as rosbag's roslz4 writes it.
-template <class Fail>
-void decompressLz4(std::span<const char> in, std::uint32_t size, std::vector<char>& out,
-                   Fail&& fail) {
-  LZ4F_dctx* context = nullptr;
-  if (LZ4F_isError(LZ4F_createDecompressionContext(&context, LZ4F_VERSION))) {
-    fail("cannot start lz4 decompression");
-  }
-  struct Free {
-    LZ4F_dctx* c;
-    ~Free() { LZ4F_freeDecompressionContext(c); }
-  } free{context};
-  const auto step = [&](std::span<const char> input, std::span<char> room) {
-    std::size_t in_size = input.size(), out_size = room.size();
-    const std::size_t hint =
-        LZ4F_decompress(context, room.data(), &out_size, input.data(), &in_size, nullptr);
-    if (LZ4F_isError(hint)) {
-      fail(fmt::format("lz4 content is corrupt ({})", LZ4F_getErrorName(hint)));
-    }
-    return Step{in_size, out_size, hint == 0};
   };
   decompress(in, size, out, step, fail);
 }

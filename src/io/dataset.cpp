@@ -195,15 +195,19 @@ ScanSourceSpec readScans(MapReader scans, const DatasetReadOptions& options) {
   ScanSourceSpec out;
   const YAML::Node type = scans.required("type");
   const auto parsed = parseScanSourceType(scans.string("type", type));
-  if (!parsed) scans.fail(type.Mark(), scans.keyOf("type"), "expected sim, kitti or bag");
+  if (!parsed) scans.fail(type.Mark(), scans.keyOf("type"), "expected sim, kitti, bag or mcap");
   out.type = *parsed;
   if (out.type == ScanSourceType::kitti) {
     out.folder = requiredPath(scans, "folder", "kitti", options);
     out.times = requiredPath(scans, "times", "kitti", options);
-  } else if (out.type == ScanSourceType::bag) {
-    out.file = requiredPath(scans, "file", "bag", options);
+  } else if (out.type == ScanSourceType::bag || out.type == ScanSourceType::mcap) {
+    const std::string name(toString(out.type));
+    out.file = requiredPath(scans, "file", name, options);
     const auto topic = scans.optional("topic");
-    if (!topic) scans.fail(scans.mark(), scans.keyOf("topic"), "missing (a bag source needs it)");
+    if (!topic) {
+      scans.fail(scans.mark(), scans.keyOf("topic"),
+                 fmt::format("missing (a {} source needs it)", name));
+    }
     out.topic = scans.string("topic", *topic);
   }
   scans.finish();
@@ -215,10 +219,12 @@ FrontEndSpec readFrontEnd(MapReader odometry, const DatasetReadOptions& options)
   out.file = requiredPath(odometry, "file", "front-end", options);
   if (auto f = odometry.optional("format")) {
     out.format = odometry.string("format", *f);
-    if (out.format != "tum" && out.format != "kitti" && out.format != "bag" && out.format != "auto")
-      odometry.fail(f->Mark(), odometry.keyOf("format"), "expected tum, kitti, bag or auto");
+    if (out.format != "tum" && out.format != "kitti" && out.format != "bag" && out.format != "mcap" &&
+        out.format != "auto")
+      odometry.fail(f->Mark(), odometry.keyOf("format"), "expected tum, kitti, bag, mcap or auto");
   }
-  const bool bag = out.format == "bag" || (out.format == "auto" && out.file.ends_with(".bag"));
+  const bool bag = out.format == "bag" || out.format == "mcap" ||
+                   (out.format == "auto" && (out.file.ends_with(".bag") || out.file.ends_with(".mcap")));
   if (bag) {
     const auto topic = odometry.optional("topic");
     if (!topic) {
@@ -357,18 +363,18 @@ void writeRobot(std::ostream& out, const RobotSpec& robot) {
   if (!robot.odometry.empty()) {
     out << "    odometry:  # an external front-end's poses, instead of the built-in odometry\n";
     out << "      file: " << scalar(robot.odometry.file) << "\n";
-    out << "      format: " << scalar(robot.odometry.format) << "  # tum | kitti | bag | auto\n";
+    out << "      format: " << scalar(robot.odometry.format) << "  # tum | kitti | bag | mcap | auto\n";
     if (!robot.odometry.topic.empty())
       out << "      topic: " << scalar(robot.odometry.topic) << "\n";
     if (!robot.odometry.times.empty())
       out << "      times: " << scalar(robot.odometry.times) << "\n";
   }
   out << "    scans:\n";
-  out << "      type: " << toString(robot.scans.type) << "  # sim | kitti | bag\n";
+  out << "      type: " << toString(robot.scans.type) << "  # sim | kitti | bag | mcap\n";
   if (robot.scans.type == ScanSourceType::kitti) {
     out << "      folder: " << scalar(robot.scans.folder) << "\n";
     out << "      times: " << scalar(robot.scans.times) << "\n";
-  } else if (robot.scans.type == ScanSourceType::bag) {
+  } else if (robot.scans.type == ScanSourceType::bag || robot.scans.type == ScanSourceType::mcap) {
     out << "      file: " << scalar(robot.scans.file) << "\n";
     out << "      topic: " << scalar(robot.scans.topic) << "\n";
   }
@@ -382,13 +388,16 @@ std::string_view toString(ScanSourceType type) {
       return "kitti";
     case ScanSourceType::bag:
       return "bag";
+    case ScanSourceType::mcap:
+      return "mcap";
     default:
       return "sim";
   }
 }
 
 std::optional<ScanSourceType> parseScanSourceType(std::string_view name) {
-  for (auto type : {ScanSourceType::sim, ScanSourceType::kitti, ScanSourceType::bag}) {
+  for (auto type :
+       {ScanSourceType::sim, ScanSourceType::kitti, ScanSourceType::bag, ScanSourceType::mcap}) {
     if (toString(type) == name) return type;
   }
   return std::nullopt;

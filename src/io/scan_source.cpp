@@ -101,6 +101,11 @@ std::unique_ptr<ScanSource> openScanSource(const DatasetSpec& spec, std::size_t 
                                                spec.resolve(r.scans.times));
     case ScanSourceType::bag:
       return std::make_unique<BagScanSource>(spec.resolve(r.scans.file), r.scans.topic);
+    case ScanSourceType::mcap:
+      throw core::Error(fmt::format(
+          "dataset '{}': robot '{}' has its scans in a ROS 2 bag (MCAP), which dcl::ros decodes "
+          "(open it with dcl::sim::openRobotScans)",
+          spec.name, r.name));
     default:
       throw core::Error(fmt::format(
           "dataset '{}': robot '{}' has simulated scans (open it with dcl::sim::openRobotScans)",

@@ -9,6 +9,7 @@
 #include <dcl/io/pose_file.hpp>
 #include <dcl/io/rosbag.hpp>
 #include <dcl/odometry/external_odometry.hpp>
+#include <dcl/ros/ros2_bag.hpp>
 
 namespace dcl::odometry {
 namespace {
@@ -19,6 +20,7 @@ constexpr double kMinCovarianceDistance = 0.1;
 
 std::string formatOf(const ExternalOdometryConfig& config) {
   if (config.format != "auto") return config.format;
+  if (config.file.ends_with(".mcap")) return "mcap";
   return config.readsBag() ? "bag" : "tum";
 }
 
@@ -47,13 +49,14 @@ void validate(const ExternalOdometryConfig& config) {
 core::Trajectory loadExternalTrajectory(const ExternalOdometryConfig& config) {
   validate(config);
   const std::string format = formatOf(config);
-  if (format == "bag") {
+  if (format == "bag" || format == "mcap") {
     if (config.topic.empty()) throw core::Error("external odometry: a bag needs a topic");
-    return io::readBagTrajectory(config.file, config.topic);
+    return format == "bag" ? io::readBagTrajectory(config.file, config.topic)
+                           : ros2::readMcapTrajectory(config.file, config.topic);
   }
   if (format != "tum" && format != "kitti") {
     throw core::Error("external odometry: unknown format '" + format +
-                      "' (expected tum, kitti, bag or auto)");
+                      "' (expected tum, kitti, bag, mcap or auto)");
   }
   std::optional<std::string> times;
   if (!config.times.empty()) times = config.times;

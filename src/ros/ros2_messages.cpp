@@ -243,6 +243,18 @@ Odometry Wire<Odometry>::in(const C& c) {
   return m;
 }
 
+// ---- geometry_msgs/PoseStamped ----
+
+Wire<PoseStamped>::Out::Out(const PoseStamped& m) {
+  c_.header = toHeader(m.header);
+  c_.pose = toPose(m.pose);
+}
+
+PoseStamped Wire<PoseStamped>::in(const C& c) {
+  return {fromHeader(c.header),
+          fromPose(c.pose.position, c.pose.orientation, "geometry_msgs/PoseStamped pose")};
+}
+
 // ---- nav_msgs/Path ----
 
 Wire<Path>::Out::Out(const Path& m) {
@@ -381,6 +393,7 @@ M decode(std::span<const std::uint8_t> bytes) {
   }
 DCL_ROS2_MESSAGE(PointCloud2)
 DCL_ROS2_MESSAGE(Odometry)
+DCL_ROS2_MESSAGE(PoseStamped)
 DCL_ROS2_MESSAGE(Path)
 DCL_ROS2_MESSAGE(TFMessage)
 DCL_ROS2_MESSAGE(MarkerArray)

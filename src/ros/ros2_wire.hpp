@@ -61,6 +61,23 @@ struct Wire<Odometry> {
 };
 
 template <>
+struct Wire<PoseStamped> {
+  using C = geometry_msgs_msg_dds__PoseStamped_;
+  static const dds_topic_descriptor_t& descriptor() {
+    return geometry_msgs_msg_dds__PoseStamped__desc;
+  }
+  class Out {
+   public:
+    explicit Out(const PoseStamped& m);
+    [[nodiscard]] const C* get() const { return &c_; }
+
+   private:
+    C c_{};
+  };
+  static PoseStamped in(const C& c);
+};
+
+template <>
 struct Wire<Path> {
   using C = nav_msgs_msg_dds__Path_;
   static const dds_topic_descriptor_t& descriptor() { return nav_msgs_msg_dds__Path__desc; }

@@ -1,4 +1,5 @@
 #include <filesystem>
+#include <type_traits>
 
 #include <fmt/format.h>
 
@@ -7,6 +8,7 @@
 #include <dcl/io/file.hpp>
 #include <dcl/io/kitti_scan.hpp>
 #include <dcl/io/pose_file.hpp>
+#include <dcl/ros/ros2_bag.hpp>
 #include <dcl/sim/export.hpp>
 #include <dcl/sim/sim_source.hpp>
 
@@ -52,12 +54,17 @@ io::ScanSourceSpec exportKitti(const io::ScanSource& source,
           .times = name + "/times.txt"};
 }
 
+/// Scans and ground truth into a ROS1 bag (io::BagWriter) or a ROS 2 one
+/// (ros2::McapBagWriter): both write the same messages.
+template <class Writer>
 io::ScanSourceSpec exportBag(const io::ScanSource& source, const io::RobotSpec& robot,
                              const std::optional<core::Trajectory>& gt, const fs::path& dir,
                              const ExportOptions& options, Tally& tally) {
   const double offset = options.bag_epoch + robot.start_time;
   const std::string frame = robot.name + "/lidar";
-  io::BagWriter writer((dir / "scans.bag").string());
+  const bool mcap = std::is_same_v<Writer, ros2::McapBagWriter>;
+  const std::string file = mcap ? "scans.mcap" : "scans.bag";
+  Writer writer((dir / file).string());
   for (std::size_t i = 0; i < source.size(); ++i) {
     const core::PointCloud cloud = source.scan(i);
     writer.writeCloud(options.cloud_topic, offset + source.stamp(i), cloud, frame);
@@ -68,8 +75,8 @@ io::ScanSourceSpec exportBag(const io::ScanSource& source, const io::RobotSpec& 
                          options.world_frame, frame);
   }
   writer.close();
-  return {.type = io::ScanSourceType::bag,
-          .file = dir.filename().string() + "/scans.bag",
+  return {.type = mcap ? io::ScanSourceType::mcap : io::ScanSourceType::bag,
+          .file = dir.filename().string() + "/" + file,
           .topic = options.cloud_topic};
 }
 
@@ -97,12 +104,20 @@ std::size_t totalScans(const std::vector<std::unique_ptr<io::ScanSource>>& sourc
 }  // namespace
 
 std::string_view toString(ExportFormat format) {
-  return format == ExportFormat::bag ? "bag" : "kitti";
+  switch (format) {
+    case ExportFormat::bag:
+      return "bag";
+    case ExportFormat::mcap:
+      return "mcap";
+    default:
+      return "kitti";
+  }
 }
 
 std::optional<ExportFormat> parseExportFormat(std::string_view name) {
-  if (name == "kitti") return ExportFormat::kitti;
-  if (name == "bag") return ExportFormat::bag;
+  for (const auto format : {ExportFormat::kitti, ExportFormat::bag, ExportFormat::mcap}) {
+    if (toString(format) == name) return format;
+  }
   return std::nullopt;
 }
 
@@ -117,9 +132,16 @@ ExportResult exportDataset(const io::DatasetSpec& spec, const std::string& folde
     const fs::path dir = fs::path(folder) / robot.name;
     std::optional<core::Trajectory> gt;
     if (!robot.ground_truth.empty()) gt = io::readGroundTruth(spec, r);
-    robot.scans = options.format == ExportFormat::kitti
-                      ? exportKitti(*sources[r], gt, dir, tally)
-                      : exportBag(*sources[r], robot, gt, dir, options, tally);
+    switch (options.format) {
+      case ExportFormat::bag:
+        robot.scans = exportBag<io::BagWriter>(*sources[r], robot, gt, dir, options, tally);
+        break;
+      case ExportFormat::mcap:
+        robot.scans = exportBag<ros2::McapBagWriter>(*sources[r], robot, gt, dir, options, tally);
+        break;
+      default:
+        robot.scans = exportKitti(*sources[r], gt, dir, tally);
+    }
     if (gt) {
       robot.ground_truth = robot.name + "/ground_truth.tum";
       copyFile(spec.resolve(spec.robots[r].ground_truth), (fs::path(folder) / robot.ground_truth));

@@ -5,6 +5,7 @@
 
 #include <dcl/core/error.hpp>
 #include <dcl/io/pose_file.hpp>
+#include <dcl/ros/ros2_bag.hpp>
 #include <dcl/sim/lidar_model.hpp>
 #include <dcl/sim/sim_source.hpp>
 
@@ -194,9 +195,11 @@ std::string SimScanSource::describe() const {
 
 std::unique_ptr<io::ScanSource> openRobotScans(const io::DatasetSpec& spec, std::size_t robot,
                                                std::shared_ptr<const SimWorld> world) {
-  if (spec.robots.at(robot).scans.type != io::ScanSourceType::sim) {
-    return io::openScanSource(spec, robot);
+  const io::ScanSourceSpec& scans = spec.robots.at(robot).scans;
+  if (scans.type == io::ScanSourceType::mcap) {
+    return std::make_unique<ros2::McapScanSource>(spec.resolve(scans.file), scans.topic);
   }
+  if (scans.type != io::ScanSourceType::sim) return io::openScanSource(spec, robot);
   if (!world) world = std::make_shared<const SimWorld>(spec);
   return std::make_unique<SimScanSource>(std::move(world), robot);
 }

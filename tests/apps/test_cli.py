@@ -843,6 +843,28 @@ class Simulate(unittest.TestCase):
         with open(self.path("gt.tum")) as f:
             self.assertEqual(len([l for l in f if l.strip() and not l.startswith("#")]), 4)
 
+    def test_mcap_export_is_read_by_convert_and_as_a_dataset(self):
+        self.simulate_short(self.path("ds"), "--export", "mcap")
+        bag = self.path("ds", "mcap", "a", "scans.mcap")
+        with open(self.path("ds", "mcap", "dataset.yaml")) as f:
+            text = f.read()
+        self.assertIn("type: mcap", text)
+        self.assertIn("file: a/scans.mcap", text)
+        run("convert", bag, self.path("scans"), "--topic", "/points")
+        self.assertEqual(len([n for n in os.listdir(self.path("scans")) if n.endswith(".bin")]), 4)
+        run("convert", bag, self.path("gt.tum"), "--topic", "/ground_truth")
+        with open(self.path("gt.tum")) as f:
+            self.assertEqual(len([l for l in f if l.strip() and not l.startswith("#")]), 4)
+        code, _, err = run("convert", bag, self.path("x.tum"), check=False)
+        self.assertNotEqual(code, 0)
+        self.assertIn("/ground_truth (nav_msgs/msg/Odometry, 4 messages)", err)
+        self.assertIn("/points (sensor_msgs/msg/PointCloud2, 4 messages)", err)
+        # The exported dataset runs as the simulated one: its scans from the MCAP files.
+        run("odometry", "--dataset", self.path("ds", "mcap"), "--robot", "a", "--out",
+            self.path("odom"))
+        with open(self.path("odom", "metrics.json")) as f:
+            self.assertEqual(json.load(f)["frames"]["frames"], 4)
+
     def test_preview_writes_two_pngs(self):
         self.simulate_short(self.path("ds"))
         run("simulate", "--preview", self.path("ds"))

@@ -19,8 +19,8 @@ using test::fileError;
 /// A dataset with one robot of each scan source type.
 DatasetSpec mixedSpec() {
   DatasetSpec spec;
-  spec.name = "mixed: three robots";  // a colon forces quoting
-  spec.description = "one of each: sim, kitti, bag";
+  spec.name = "mixed: four robots";  // a colon forces quoting
+  spec.description = "one of each: sim, kitti, bag, mcap";
   spec.sensor = "vlp16";
   spec.mount_height = 0.8125;
   spec.sim = SimSpec{.world = WorldKind::aliasing,
@@ -41,7 +41,12 @@ DatasetSpec mixedSpec() {
               .ground_truth = "",
               .start_time = 1.0 / 3.0,
               .odometry = {.file = "c.bag", .format = "auto", .topic = "/lio/odom"}};
-  spec.robots = {a, b, c};
+  RobotSpec d{.name = "d",
+              .scans = {.type = ScanSourceType::mcap, .file = "d/scans.mcap", .topic = "/points"},
+              .ground_truth = "d/gt.tum",
+              .start_time = 2.0,
+              .odometry = {.file = "d/lio.mcap", .format = "auto", .topic = "/odom"}};
+  spec.robots = {a, b, c, d};
   return spec;
 }
 
@@ -84,7 +89,7 @@ TEST(Dataset, RoundTripKeepsEveryField) {
   EXPECT_TRUE(back.sim->noise);
   EXPECT_FALSE(back.sim->calibration_error);
   EXPECT_TRUE(back.sim->shared_unit);
-  ASSERT_EQ(back.robots.size(), 3u);
+  ASSERT_EQ(back.robots.size(), 4u);
   EXPECT_EQ(back.robots[0].scans.type, ScanSourceType::sim);
   EXPECT_EQ(back.robots[1].scans.type, ScanSourceType::kitti);
   EXPECT_EQ(back.robots[1].scans.folder, "b/velodyne");
@@ -101,10 +106,14 @@ TEST(Dataset, RoundTripKeepsEveryField) {
   EXPECT_EQ(back.robots[2].odometry.file, "c.bag");
   EXPECT_EQ(back.robots[2].odometry.format, "auto");
   EXPECT_EQ(back.robots[2].odometry.topic, "/lio/odom");
+  EXPECT_EQ(back.robots[3].scans.type, ScanSourceType::mcap);
+  EXPECT_EQ(back.robots[3].scans.file, "d/scans.mcap");
+  EXPECT_EQ(back.robots[3].scans.topic, "/points");
+  EXPECT_EQ(back.robots[3].odometry.topic, "/odom");  // an .mcap file's topic, as a bag's
   EXPECT_EQ(back.folder, dir.file("ds"));
   EXPECT_EQ(back.resolve("b/gt.tum"), dir.file("ds") + "/b/gt.tum");
   EXPECT_EQ(back.robotIndex("c"), 2u);
-  EXPECT_FALSE(back.robotIndex("d"));
+  EXPECT_FALSE(back.robotIndex("e"));
 }
 
 TEST(Dataset, ReadsTheYamlFileItselfAndWithoutSimSection) {
@@ -133,7 +142,7 @@ TEST(Dataset, FileStatesTheConventions) {
   EXPECT_TRUE(contains(text, "stamps: since_robot_start"));
   EXPECT_TRUE(contains(text, "points: sensor_frame_at_firing"));
   EXPECT_TRUE(contains(text, "units: metres_seconds_radians"));
-  EXPECT_TRUE(contains(text, "name: \"mixed: three robots\""));
+  EXPECT_TRUE(contains(text, "name: \"mixed: four robots\""));
 }
 
 TEST(Dataset, ReadsGroundTruthRelativeToTheFolder) {
@@ -173,7 +182,7 @@ TEST(Dataset, RejectsBrokenFilesNamingLineAndKey) {
        {":1:", "field 'format_version'", "not supported"}},
       {"source type",
        edited("type: kitti", "type: rosbag"),
-       {":10:", "field 'robots[0].scans.type'", "sim, kitti or bag"}},
+       {":10:", "field 'robots[0].scans.type'", "sim, kitti, bag or mcap"}},
       {"kitti needs times",
        edited("      times: a/times.txt\n", ""),
        {":10:", "field 'robots[0].scans.times'", "kitti source needs it"}},
@@ -234,9 +243,12 @@ TEST(Dataset, RejectsBrokenFilesNamingLineAndKey) {
        {":11:", "field 'robots[0].scans.file'", "outside the dataset folder"}},
       {"front-end format",
        edited("    scans:\n", "    odometry: {file: a.tum, format: csv}\n    scans:\n"),
-       {":9:", "field 'robots[0].odometry.format'", "tum, kitti, bag or auto"}},
+       {":9:", "field 'robots[0].odometry.format'", "tum, kitti, bag, mcap or auto"}},
       {"front-end bag without its topic",
        edited("    scans:\n", "    odometry: {file: lio.bag}\n    scans:\n"),
+       {":9:", "field 'robots[0].odometry.topic'", "need their topic"}},
+      {"front-end mcap without its topic",
+       edited("    scans:\n", "    odometry: {file: lio.mcap}\n    scans:\n"),
        {":9:", "field 'robots[0].odometry.topic'", "need their topic"}},
       {"front-end kitti without times",
        edited("    scans:\n", "    odometry: {file: lio.txt, format: kitti}\n    scans:\n"),
@@ -300,7 +312,8 @@ TEST(Dataset, NamesParseBothWays) {
   for (auto kind : {WorldKind::city, WorldKind::campus, WorldKind::aliasing}) {
     EXPECT_EQ(parseWorldKind(toString(kind)), kind);
   }
-  for (auto type : {ScanSourceType::sim, ScanSourceType::kitti, ScanSourceType::bag}) {
+  for (auto type :
+       {ScanSourceType::sim, ScanSourceType::kitti, ScanSourceType::bag, ScanSourceType::mcap}) {
     EXPECT_EQ(parseScanSourceType(toString(type)), type);
   }
   EXPECT_FALSE(parseWorldKind("town"));

@@ -2,15 +2,18 @@
 // replayed at scan times, in the odometry frame of the first frame.
 
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <string>
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <dcl/core/error.hpp>
 #include <dcl/io/pose_file.hpp>
 #include <dcl/io/rosbag.hpp>
 #include <dcl/odometry/external_odometry.hpp>
+#include <dcl/ros/ros2_bag.hpp>
 
 namespace dcl::odometry {
 namespace {
@@ -179,6 +182,38 @@ TEST(ExternalOdometry, ReadsPoseStampedFromARealBag) {
   // Message 1000's position as python-rosbag (an independent reader) prints it.
   const Eigen::Vector3d expected(-1.861040072496155, -3.019153243585831, 21.184413495268355);
   EXPECT_LT(((bag.pose(0) * r.T_odom_sensor).translation() - expected).norm(), 1e-9);
+}
+
+TEST(ExternalOdometry, ReadsOdometryAndPoseStampedFromAnMcapBag) {
+  // The real bag's poses written as a ROS 2 bag, read back by extension and by format.
+  const core::Trajectory bag =
+      io::readBagTrajectory(data("rosbags/evo_ROS_example.bag"), "/groundtruth");
+  const std::string mcap = (std::filesystem::path(::testing::TempDir()) /
+                            ("external_" + std::to_string(::getpid()) + ".mcap"))
+                               .string();
+  ros2::McapBagWriter writer(mcap);
+  for (std::size_t i = 0; i < 200; ++i) {
+    writer.writeOdometry("/odom", bag.stamp(i), bag.pose(i), "world", "base_link");
+    writer.writePose("/pose", bag.stamp(i), bag.pose(i), "world");
+  }
+  writer.close();
+  for (const char* topic : {"/odom", "pose"}) {
+    SCOPED_TRACE(topic);
+    ExternalOdometryConfig config;
+    config.file = mcap;  // format "auto": by the .mcap extension
+    config.topic = topic;
+    const core::Trajectory read = loadExternalTrajectory(config);
+    ASSERT_EQ(read.size(), 200u);
+    EXPECT_NEAR(read.stamp(150), bag.stamp(150), 1e-9);
+    EXPECT_LT(poseError(read.pose(150), bag.pose(150)), 1e-9);
+    config.file = mcap + ".renamed";
+    std::filesystem::copy_file(mcap, config.file,
+                               std::filesystem::copy_options::overwrite_existing);
+    config.format = "mcap";
+    EXPECT_EQ(loadExternalTrajectory(config).size(), 200u);
+    std::filesystem::remove(config.file);
+  }
+  std::filesystem::remove(mcap);
 }
 
 TEST(ExternalOdometry, RejectsUnusableSources) {

@@ -14,6 +14,7 @@
 #include <dcl/io/pose_file.hpp>
 #include <dcl/io/rosbag.hpp>
 #include <dcl/io/scan_source.hpp>
+#include <dcl/ros/ros2_bag.hpp>
 #include <dcl/sim/export.hpp>
 #include <dcl/sim/sim_source.hpp>
 
@@ -120,9 +121,30 @@ TEST_F(ExportTest, BagsHoldScansWithEveryChannelAndGroundTruth) {
   EXPECT_EQ(pythonMessageCount(bag), 6u);
 }
 
+TEST_F(ExportTest, Ros2BagsHoldScansWithEveryChannelAndGroundTruth) {
+  const ExportResult result =
+      exportDataset(spec_, (dir_ / "mcap").string(), {.format = ExportFormat::mcap});
+  EXPECT_EQ(result.dataset.robots[0].scans.type, io::ScanSourceType::mcap);
+  EXPECT_EQ(result.dataset.robots[0].scans.file, "a/scans.mcap");
+  const std::string bag = (dir_ / "mcap/a/scans.mcap").string();
+  const auto exported = openRobotScans(result.dataset, 0);  // as the dataset.yaml says
+  ASSERT_EQ(exported->size(), 3u);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_NEAR(exported->stamp(i), sources_[0]->stamp(i), 1e-6);
+    EXPECT_TRUE(test::sameCloud(exported->scan(i), sources_[0]->scan(i)));
+  }
+  const core::Trajectory gt = ros2::readMcapTrajectory(bag, "/ground_truth");
+  const core::Trajectory expected = io::readGroundTruth(spec_, 0);
+  ASSERT_EQ(gt.size(), expected.size());
+  EXPECT_NEAR(gt.stamp(2) - 1.0e9, expected.stamp(2), 1e-6);
+  EXPECT_TRUE(gt.pose(2).isApprox(expected.pose(2), 1e-12));
+  EXPECT_TRUE(io::McapReader(bag).indexed());
+}
+
 TEST(ExportFormatNames, ParseBothWays) {
   EXPECT_EQ(parseExportFormat("kitti"), ExportFormat::kitti);
   EXPECT_EQ(parseExportFormat(toString(ExportFormat::bag)), ExportFormat::bag);
+  EXPECT_EQ(parseExportFormat(toString(ExportFormat::mcap)), ExportFormat::mcap);
   EXPECT_FALSE(parseExportFormat("pcd"));
 }
 

@@ -36,9 +36,10 @@ enum class ScanSourceType {
   sim,    ///< regenerated on demand by the simulator (nothing on disk)
   kitti,  ///< a folder of KITTI `NNNNNN.bin` scans and a times file
   bag,    ///< a ROS1 bag topic of sensor_msgs/PointCloud2
+  mcap,   ///< a ROS 2 bag (MCAP) topic of sensor_msgs/PointCloud2 (read by dcl::ros)
 };
 
-/// "sim", "kitti" or "bag".
+/// "sim", "kitti", "bag" or "mcap".
 std::string_view toString(ScanSourceType type);
 
 /// The type called `name`; none for an unknown name.
@@ -49,20 +50,20 @@ struct ScanSourceSpec {
   ScanSourceType type = ScanSourceType::sim;  ///< default: simulated
   std::string folder{};  ///< kitti: folder of NNNNNN.bin (relative); default none
   std::string times{};   ///< kitti: stamps one a line, s since start (relative); default none
-  std::string file{};    ///< bag: the bag file (relative); default none
-  std::string topic{};   ///< bag: the sensor_msgs/PointCloud2 topic; default none
+  std::string file{};    ///< bag, mcap: the bag file (relative); default none
+  std::string topic{};   ///< bag, mcap: the sensor_msgs/PointCloud2 topic; default none
 };
 
 /// The poses of a robot's own front-end (LIO-SAM, FAST-LIO2, wheel and IMU
-/// odometry, ...), taken instead of the built-in LiDAR odometry, the scans then
+/// odometry, ...), in a pose file or a ROS 1 or ROS 2 (MCAP) bag topic, taken instead of the built-in LiDAR odometry, the scans then
 /// serving keyframe clouds, descriptors and verification only. The poses are
 /// T_world_body on the scans' clock, read as odometry::ExternalOdometryConfig
 /// reads them (the configuration's `external` section gives T_body_sensor and
 /// the noise model).
 struct FrontEndSpec {
   std::string file{};           ///< TUM or KITTI poses, or a bag (relative); "" when none
-  std::string format = "auto";  ///< tum | kitti | bag | auto (by extension: .bag, else tum)
-  std::string topic{};          ///< bag: nav_msgs/Odometry or geometry_msgs/PoseStamped topic
+  std::string format = "auto";  ///< tum | kitti | bag | mcap | auto (by extension, else tum)
+  std::string topic{};          ///< bag, mcap: nav_msgs/Odometry or PoseStamped topic
   std::string times{};          ///< kitti: stamps one a line (relative)
 
   [[nodiscard]] bool empty() const { return file.empty(); }

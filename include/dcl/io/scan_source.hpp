@@ -95,8 +95,8 @@ class BagScanSource final : public ScanSource {
 };
 
 /// The scans of robot `robot` of a dataset whose scans are on disk (kitti or
-/// bag). Throws core::Error for a simulated robot (dcl::sim opens those) and
-/// core::FileError when the files cannot be read.
+/// bag). Throws core::Error for a simulated robot or an MCAP one (dcl::sim
+/// opens those: sim::openRobotScans) and core::FileError when the files cannot be read.
 std::unique_ptr<ScanSource> openScanSource(const DatasetSpec& spec, std::size_t robot);
 
 }  // namespace dcl::io

@@ -2,8 +2,8 @@
 
 /// Odometry from another front-end (paper §III-A: the framework is front-end
 /// agnostic): poses recorded by LIO-SAM, FAST-LIO2, a ground-truth system or
-/// any other source, in a TUM or KITTI file or a ROS1 bag topic
-/// (nav_msgs/Odometry, geometry_msgs/PoseStamped), replayed at the scan times.
+/// any other source, in a TUM or KITTI file or a topic of a ROS1 bag or a ROS 2
+/// bag in MCAP (nav_msgs/Odometry, geometry_msgs/PoseStamped), replayed at the scan times.
 ///
 /// The source gives T_world_body at its own stamps. For a scan at `stamp` the
 /// pose is interpolated there (core::Trajectory::at), moved to the LiDAR by a
@@ -30,10 +30,11 @@ struct ExternalOdometryConfig {
   /// How far the norm of T_body_sensor's quaternion may be from 1 (values written to a few digits).
   static constexpr double kQuaternionTolerance = 1e-2;
 
-  std::string file = "";        ///< pose file or bag; default none (a trajectory is given in code)
-  std::string format = "auto";  ///< "tum", "kitti", "bag" or "auto" (by extension: .bag, else tum)
-  std::string times = "";       ///< kitti: the times file (one stamp a line); default none
-  std::string topic = "";       ///< bag: the nav_msgs/Odometry or PoseStamped topic; default none
+  std::string file = "";  ///< pose file or bag; default none (a trajectory is given in code)
+  /// "tum", "kitti", "bag" (ROS1), "mcap" (ROS 2) or "auto" (by extension: .bag, .mcap, else tum)
+  std::string format = "auto";
+  std::string times = "";  ///< kitti: the times file (one stamp a line); default none
+  std::string topic = "";  ///< bag: the nav_msgs/Odometry or PoseStamped topic; default none
   /// T_body_sensor as x y z qx qy qz qw: the LiDAR's pose in the source's body frame;
   /// default identity (the poses are the LiDAR's).
   Eigen::Matrix<double, 7, 1> T_body_sensor =
@@ -47,9 +48,9 @@ struct ExternalOdometryConfig {
   /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
-    v.field("file", file, "pose file or ROS1 bag of the external front-end");
-    v.field("format", format, "tum, kitti, bag or auto (by extension)")
-        .oneOf({"tum", "kitti", "bag", "auto"});
+    v.field("file", file, "pose file, ROS1 bag or ROS 2 bag (MCAP) of the external front-end");
+    v.field("format", format, "tum, kitti, bag, mcap or auto (by extension)")
+        .oneOf({"tum", "kitti", "bag", "mcap", "auto"});
     v.field("times", times, "kitti: times file");
     v.field("topic", topic, "bag: nav_msgs/Odometry or geometry_msgs/PoseStamped topic")
         .rule(file.empty() || !readsBag() || !topic.empty(), "must be given to read a bag", "file");
@@ -64,18 +65,20 @@ struct ExternalOdometryConfig {
         .positive();
   }
 
-  /// Whether `file` is read as a bag: format bag, or auto and a .bag file.
+  /// Whether `file` is read as a bag, ROS1 or ROS 2: format bag or mcap, or
+  /// auto and a .bag or .mcap file.
   [[nodiscard]] bool readsBag() const {
-    return format == "bag" || (format == "auto" && file.ends_with(".bag"));
+    return format == "bag" || format == "mcap" ||
+           (format == "auto" && (file.ends_with(".bag") || file.ends_with(".mcap")));
   }
 };
 
 /// Throws core::Error naming the first field that breaks its rule (visit()).
 void validate(const ExternalOdometryConfig& config);
 
-/// Reads the trajectory `config` names (TUM or KITTI file via the io readers, or a
-/// bag topic). Throws core::FileError naming the file when it cannot be read, and
-/// core::Error for an unknown format or a bag without a topic.
+/// Reads the trajectory `config` names (TUM or KITTI file via the io readers, a
+/// ROS1 bag topic, or an MCAP topic via dcl::ros). Throws core::FileError naming the file when it
+/// cannot be read, and core::Error for an unknown format or a bag without a topic.
 core::Trajectory loadExternalTrajectory(const ExternalOdometryConfig& config);
 
 /// Replays recorded poses as an Odometry.

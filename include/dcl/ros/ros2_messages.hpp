@@ -36,6 +36,7 @@ std::string_view typeName();
 /// The message's bytes on the wire: encapsulation header (CDR, little-endian), then XCDR1.
 std::vector<std::uint8_t> encode(const PointCloud2& message);
 std::vector<std::uint8_t> encode(const Odometry& message);
+std::vector<std::uint8_t> encode(const PoseStamped& message);
 std::vector<std::uint8_t> encode(const Path& message);
 std::vector<std::uint8_t> encode(const TFMessage& message);
 std::vector<std::uint8_t> encode(const MarkerArray& message);

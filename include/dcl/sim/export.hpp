@@ -1,7 +1,7 @@
 #pragma once
 
-/// Exporting a dataset's scans to real files for other tools: KITTI folders or
-/// ROS1 bags, with a dataset.yaml describing the exported copy.
+/// Exporting a dataset's scans to real files for other tools: KITTI folders,
+/// ROS1 bags or ROS 2 bags (MCAP), with a dataset.yaml describing the exported copy.
 
 #include <cstdint>
 #include <functional>
@@ -17,9 +17,10 @@ namespace dcl::sim {
 enum class ExportFormat {
   kitti,  ///< per robot: velodyne/NNNNNN.bin, times.txt, poses.txt (KITTI poses)
   bag,    ///< per robot: scans.bag with PointCloud2 scans and Odometry ground truth
+  mcap,   ///< per robot: scans.mcap (ROS 2, zstd) with PointCloud2 scans and Odometry ground truth
 };
 
-/// "kitti" or "bag".
+/// "kitti", "bag" or "mcap".
 std::string_view toString(ExportFormat format);
 
 /// The format called `name`; none for another name.
@@ -31,7 +32,7 @@ struct ExportOptions {
   std::string cloud_topic = "/points";               ///< bag topic of the scans
   std::string ground_truth_topic = "/ground_truth";  ///< bag topic of the ground truth
   std::string world_frame = "world";                 ///< frame_id of the ground truth
-  /// s, added to every bag stamp: ROS time must be positive, robot stamps start at 0.
+  /// s, added to every bag (and MCAP) stamp: ROS time must be positive, robot stamps start at 0.
   /// Readers of the exported dataset subtract the first scan's stamp again.
   double bag_epoch = 1.0e9;
 };

@@ -98,7 +98,8 @@ class SimScanSource final : public io::ScanSource {
 
 /// The scans of robot `robot` of any dataset: regenerated for a simulated robot
 /// (from `world`, built on first need when null and the robot needs it), read
-/// from disk otherwise (io::openScanSource).
+/// from disk otherwise (ros2::McapScanSource for an MCAP file, io::openScanSource
+/// for the rest).
 std::unique_ptr<io::ScanSource> openRobotScans(const io::DatasetSpec& spec, std::size_t robot,
                                                std::shared_ptr<const SimWorld> world = nullptr);
 

@@ -1,0 +1,73 @@
+// libFuzzer target: MCAP files (the records, the summary and its indexes,
+// uncompressed, zstd and lz4 chunks, CRCs) and the ROS 2 PointCloud2,
+// Odometry and PoseStamped messages in them. A reader may refuse input only
+// with core::FileError. The input is handed over as an in-memory file.
+#include <cstdint>
+#include <set>
+#include <string>
+
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <dcl/core/error.hpp>
+#include <dcl/io/mcap.hpp>
+#include <dcl/ros/ros2_bag.hpp>
+
+namespace {
+
+/// Every message's bytes, past damaged ones.
+void readMessages(const std::string& path) {
+  dcl::io::McapReader reader(path);
+  for (const auto& ref : reader.messages()) {
+    try {
+      (void)reader.read(ref);
+    } catch (const dcl::core::FileError&) {
+    }
+  }
+}
+
+/// One topic of each type the way the pipeline reads it: clouds one by one,
+/// past bad ones; poses as a trajectory.
+void readTopics(const std::string& path) {
+  std::set<std::string> types_read;
+  for (const auto& topic : dcl::ros2::listMcapTopics(path)) {
+    if (!types_read.insert(topic.type).second) continue;
+    try {
+      if (topic.type == "sensor_msgs/msg/PointCloud2") {
+        dcl::ros2::McapCloudReader reader(path, topic.name);
+        for (;;) {
+          try {
+            if (!reader.next()) break;
+          } catch (const dcl::core::FileError&) {
+          }
+        }
+      } else {
+        (void)dcl::ros2::readMcapTrajectory(path, topic.name);
+      }
+    } catch (const dcl::core::FileError&) {
+    }
+  }
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const int fd = memfd_create("mcap", 0);
+  if (fd < 0) return 0;
+  std::size_t written = 0;
+  while (written < size) {
+    const ssize_t n = write(fd, data + written, size - written);
+    if (n <= 0) break;
+    written += static_cast<std::size_t>(n);
+  }
+  if (written == size) {
+    const std::string path = "/proc/self/fd/" + std::to_string(fd);
+    try {
+      readMessages(path);
+      readTopics(path);
+    } catch (const dcl::core::FileError&) {
+    }
+  }
+  close(fd);
+  return 0;
+}
