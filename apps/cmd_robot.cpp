@@ -83,6 +83,7 @@ struct RobotOptions {
       odometry_in;  ///< an external front-end's topic (default: ros.odometry_in)
   std::optional<std::uint32_t> ros_domain;  ///< ROS 2; default: ros.domain
   std::optional<std::string> ros_master;    ///< ROS 1; default: ros.master_uri, ROS_MASTER_URI
+  std::vector<std::string> frame_ids;       ///< map, odom, base, sensor; default: the ros section's
 
   [[nodiscard]] bool live() const { return ros2 || ros1; }
 };
@@ -457,6 +458,12 @@ struct LiveRobot {
     if (o.odometry_in) s.odometry_in = *o.odometry_in;
     if (o.ros_domain) s.domain = *o.ros_domain;
     if (o.ros_master) s.master_uri = *o.ros_master;
+    if (o.frame_ids.size() == 4) {
+      s.map_frame = o.frame_ids[0];
+      s.odom_frame = o.frame_ids[1];
+      s.base_frame = o.frame_ids[2];
+      s.sensor_frame = o.frame_ids[3];
+    }
     if (s.interface.empty()) s.interface = o.dds.interface;  // one network for both, unless told
     for (std::string* name : {&s.points, &s.odometry_in, &s.map_frame, &s.odom_frame, &s.base_frame,
                               &s.odometry_topic, &s.path_topic, &s.map_topic, &s.loops_topic}) {
@@ -731,6 +738,10 @@ void runRobot(const RobotOptions& o, const AppConfig& config) {
     }
     if (o.ros1 && o.ros_domain) throw core::Error("robot: --ros-domain is for ROS 2 (--ros2)");
     if (o.ros2 && o.ros_master) throw core::Error("robot: --ros-master is for ROS 1 (--ros1)");
+    for (const std::string& frame : o.frame_ids) {
+      if (frame.empty() || frame.find_first_of(" \t\n,") != std::string::npos)
+        throw core::Error(fmt::format("--frame-ids: '{}' is not a frame id", frame));
+    }
     if (o.ros_master && !o.ros_master->starts_with("http://")) {
       throw core::Error(
           fmt::format("--ros-master '{}': a master's URI is http://HOST:PORT", *o.ros_master));
@@ -743,10 +754,10 @@ void runRobot(const RobotOptions& o, const AppConfig& config) {
   }
   if (o.dataset.empty())
     throw core::Error("robot: --dataset is required (or --ros2 / --ros1 for a live robot)");
-  if (o.id || o.points || o.ros_domain || o.odometry_in || o.ros_master)
+  if (o.id || o.points || o.ros_domain || o.odometry_in || o.ros_master || !o.frame_ids.empty())
     throw core::Error(
-        "robot: --id, --points, --odometry, --ros-domain and --ros-master are for a live robot "
-        "(--ros2, --ros1)");
+        "robot: --id, --points, --odometry, --ros-domain, --ros-master and --frame-ids are for a "
+        "live robot (--ros2, --ros1)");
   const StopSignals signals;
   io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const std::size_t index = robotIndex(spec, o.robot);
@@ -829,6 +840,11 @@ void addRobotCommand(CLI::App& app, const AppConfig& config) {
   cmd->add_option("--ros-domain", o->ros_domain,
                   "live: DDS domain of the ROS 2 topics, ROS_DOMAIN_ID (default: ros.domain)")
       ->check(CLI::Range(0, 232));
+  cmd->add_option("--frame-ids", o->frame_ids,
+                  "live: MAP,ODOM,BASE,SENSOR frame ids ({robot} stands for the name; default: "
+                  "the ros section's map_frame, odom_frame, base_frame, sensor_frame)")
+      ->delimiter(',')
+      ->expected(4);
   cmd->add_option("--ros-master", o->ros_master,
                   "live: the ROS 1 master's URI (default: ros.master_uri, else ROS_MASTER_URI)");
   cmd->callback([o, &config] { runRobot(*o, config); });

@@ -91,12 +91,15 @@ class Ros1Robot(unittest.TestCase):
         listener = self.spawn([PYTHON, os.path.join(HERE, "ros1_listener.py"), heard_file,
                                *self.ROBOTS])
         self.assertEqual(listener.stdout.readline().strip(), "listening")
+        # Robot a with the configuration's frames, b with its own.
+        frames = {"a": ["map", "a/odom", "a/base_link"], "b": ["world", "b_odom", "b_base"]}
         robots = {}
         for i, r in enumerate(self.ROBOTS):
             robots[r] = self.spawn(
                 [DCL_SLAM, "robot", "--ros1", "--robot", r, "--id", str(i), "--out", out,
                  "--points", f"/{r}/points", "--domain", "177", "--interface", "lo",
-                 "--swarm", f"ros1-test-{os.getpid()}"])
+                 "--swarm", f"ros1-test-{os.getpid()}",
+                 *(["--frame-ids", "world,b_odom,b_base,b_lidar"] if r == "b" else [])])
         for r, proc in robots.items():
             line = proc.stdout.readline()
             self.assertIn(f"robot {r}: reading /{r}/points on ROS 1", line)
@@ -142,20 +145,21 @@ class Ros1Robot(unittest.TestCase):
             # What rospy heard: types and md5 sums matched (rospy checks them),
             # frames as configured, and the last path is the trajectory written.
             h = heard["robots"][r]
+            world, odom, base = frames[r]
             self.assertGreater(h["odometry"], 10, r)
-            self.assertEqual(h["odometry_frame"], ["map", f"{r}/base_link"])
-            self.assertEqual(h["path_frame"], "map")
+            self.assertEqual(h["odometry_frame"], [world, base])
+            self.assertEqual(h["path_frame"], world)
             trajectory = tum(os.path.join(out, r, "trajectory.tum"))
             self.assertEqual(len(h["path"]), len(trajectory), r)
             for (t, x, y, z), row in zip(h["path"], trajectory):
                 self.assertAlmostEqual(t, row[0], places=3)
                 self.assertLess(math.dist((x, y, z), row[1:4]), 1e-3, r)
             self.assertGreater(h["map_points"], 1000, r)
-            self.assertEqual(h["map_frame"], "map")
+            self.assertEqual(h["map_frame"], world)
             self.assertEqual(h["map_fields"][:3], ["x", "y", "z"])
             self.assertIsNotNone(h["loop_markers"], r)
-            self.assertIn(["map", f"{r}/odom"], heard["tf"])
-            self.assertIn([f"{r}/odom", f"{r}/base_link"], heard["tf"])
+            self.assertIn([world, odom], heard["tf"])
+            self.assertIn([odom, base], heard["tf"])
             # Its peer was heard over DDS.
             self.assertGreater(report["bytes_received"], 0, r)
 
