@@ -72,7 +72,12 @@ class Hostile(unittest.TestCase):
         subprocess.run(["/usr/bin/python3", os.path.join(SOURCE, "tests", "io", "make_test_bag.py"),
                         cls.good], check=True)
         subprocess.run([DCL_SLAM, "simulate", "--preset", "demo", "--robots", "2",
-                        "--max-scans", "4", "--out", os.path.join(cls.good, "dataset")],
+                        "--max-scans", "4", "--odometry-drift", "1,0.01", "--out",
+                        os.path.join(cls.good, "dataset")],
+                       check=True, capture_output=True)
+        subprocess.run([DCL_SLAM, "simulate", "--preset", "demo", "--robots", "1",
+                        "--max-scans", "2", "--export", "mcap", "--out",
+                        os.path.join(cls.good, "mcap_dataset")],
                        check=True, capture_output=True)
         subprocess.run([DCL_SLAM, "convert",
                         os.path.join(DATA, "lidar_scans", "kitti_00", "velodyne", "000000.bin"),
@@ -213,17 +218,34 @@ class Hostile(unittest.TestCase):
                 "clouds": lambda i, o: ["convert", i, o, "--topic", "/velodyne_points"],
             })
 
+    def test_ros2_bags(self):
+        found = [os.path.join(d, f) for d, _, fs in os.walk(os.path.join(self.good, "mcap_dataset"))
+                 for f in fs if f.endswith(".mcap")]
+        self.assertEqual(len(found), 1)
+        with open(found[0], "rb") as f:
+            original = f.read()
+        self.check("scans.mcap", original, {
+            "poses": lambda i, o: ["convert", i, o + ".tum", "--topic", "/ground_truth"],
+            "clouds": lambda i, o: ["convert", i, o, "--topic", "/points"],
+        })
+
     def test_datasets(self):
+        folder = lambda i: os.path.join(i.split(os.sep + "dataset" + os.sep)[0], "dataset")
+        commands = {
+            "run": lambda i, o: ["run", "--dataset", folder(i), "--out", o],
+            "odometry": lambda i, o: ["odometry", "--dataset", folder(i), "--robot", "b",
+                                      "--out", o],
+            "bench place": lambda i, o: ["bench", "place", "--dataset", folder(i), "--out", o],
+            "bench loops": lambda i, o: ["bench", "loops", "--dataset", folder(i), "--out", o],
+        }
         for name in (os.path.join("dataset", "dataset.yaml"),
                      os.path.join("dataset", "ground_truth", "b.tum")):
-            folder = lambda i: os.path.join(i.split(os.sep + "dataset" + os.sep)[0], "dataset")
-            self.check(name, self.read(self.good, name), {
-                "run": lambda i, o: ["run", "--dataset", folder(i), "--out", o],
-                "odometry": lambda i, o: ["odometry", "--dataset", folder(i), "--robot", "b",
-                                          "--out", o],
-                "bench place": lambda i, o: ["bench", "place", "--dataset", folder(i), "--out", o],
-                "bench loops": lambda i, o: ["bench", "loops", "--dataset", folder(i), "--out", o],
-            })
+            self.check(name, self.read(self.good, name), commands)
+        # A robot's own front-end: read by what runs its odometry (the
+        # benchmarks of place recognition and loops take the ground truth).
+        name = os.path.join("dataset", "odometry", "b.tum")
+        self.check(name, self.read(self.good, name),
+                   {k: commands[k] for k in ("run", "odometry")})
 
     def test_configs(self):
         dataset = os.path.join(self.good, "dataset")
