@@ -78,8 +78,11 @@ void runPlay(const PlayOptions& o, const AppConfig& config) {
         node.publish(odometry_topic, m);
       }
     }
-    const core::PointCloud scan = scans->scan(i);
-    // Stamped with the wall clock when the scan is due, as a driver stamps it.
+    core::PointCloud scan = scans->scan(i);
+    // Stamped with the wall clock when the scan is due, as a driver stamps it;
+    // played faster, the sweep is faster too (its points' times divided by
+    // the rate), so that a front-end sees the motion the scans hold.
+    for (float& t : scan.time) t = static_cast<float>(t / o.rate);
     node.publish(topic, msg::toPointCloud2(scan, {due, frame}));
     ++sent;
   }
