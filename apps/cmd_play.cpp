@@ -48,7 +48,7 @@ void runPlay(const PlayOptions& o, const AppConfig& config) {
   const std::string topic = named(o.points.value_or(config.ros.points), o.robot);
   const std::string frame = named(config.ros.sensor_frame, o.robot);
   ros2::Node node(ros2::NodeConfig{o.ros_domain.value_or(config.ros.domain),
-                                   o.interface.value_or(config.ros.interface)});
+                                   o.interface.value_or(config.ros.interface), "dcl_slam_play"});
   node.advertise<msg::PointCloud2>(topic, ros2::Qos::sensor_data);
   // A perfect front-end for trying the external odometry: the ground truth.
   const std::string odometry_topic = named(o.odometry, o.robot);

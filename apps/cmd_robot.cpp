@@ -355,8 +355,8 @@ struct Ros2Middleware {
   using Qos = ros2::Qos;
   static constexpr const char* kName = "ROS 2";
 
-  static ros2::NodeConfig nodeConfig(const RosSection& ros, const std::string& /*robot*/) {
-    return {ros.domain, ros.interface};
+  static ros2::NodeConfig nodeConfig(const RosSection& ros, const std::string& robot) {
+    return {ros.domain, ros.interface, "dcl_slam_" + robot};
   }
   static void checkTopic(const std::string& topic) { (void)ros2::ddsTopicName(topic); }
   static std::string where(const RosSection& ros) {

@@ -1,5 +1,6 @@
 // A ROS 2 participant on DDS (ros2_node.hpp): typed writers and readers of the
 // generated message types, converted to and from dcl::ros2's values.
+#include <algorithm>
 #include <array>
 #include <cctype>
 #include <string_view>
@@ -11,6 +12,7 @@
 #include <dcl/core/error.hpp>
 #include <dcl/ros/ros2_node.hpp>
 
+#include "rmw_dds_common.h"
 #include "ros2_wire.hpp"
 
 namespace dcl::ros2 {
@@ -26,6 +28,20 @@ using core::Error;
 constexpr dds_duration_t kMaxWriteBlocking = DDS_MSECS(100);
 /// Samples taken per dds_take call.
 constexpr std::uint32_t kTakeBatch = 16;
+/// Where ROS 2 participants say which nodes they hold (rmw_dds_common).
+constexpr const char* kDiscoveryTopic = "ros_discovery_info";
+
+using Gid = rmw_dds_common_msg_dds__Gid_;
+
+/// An entity's DDS GUID as ROS 2 gives it: its 16 bytes, then zeros.
+Gid gidOf(dds_entity_t entity) {
+  dds_guid_t guid{};
+  const dds_return_t rc = dds_get_guid(entity, &guid);
+  if (rc < 0) ddsFail("dds_get_guid", rc);
+  Gid gid{};
+  std::copy(std::begin(guid.v), std::end(guid.v), std::begin(gid.data));
+  return gid;
+}
 
 /// ROS 2's QoS profiles (rmw_qos_profile_sensor_data, _default, and a latched topic's).
 DdsQos ddsQos(Qos qos, bool writer) {
@@ -108,7 +124,40 @@ struct Node::Impl {
   explicit Impl(const NodeConfig& config)
       : lease(config.domain, config.interface, NodeConfig::kMaxSampleBytes),
         participant(config.domain),
-        waitset(ddsChecked(dds_create_waitset(participant.handle()), "dds_create_waitset")) {}
+        waitset(ddsChecked(dds_create_waitset(participant.handle()), "dds_create_waitset")),
+        node_name(config.name) {
+    const dds_entity_t topic =
+        ddsChecked(dds_create_topic(participant.handle(),
+                                    &rmw_dds_common_msg_dds__ParticipantEntitiesInfo__desc,
+                                    kDiscoveryTopic, nullptr, nullptr),
+                   std::string("dds_create_topic(") + kDiscoveryTopic + ")");
+    const DdsQos q = ddsQos(Qos::transient_local, /*writer=*/true);
+    discovery = ddsChecked(dds_create_writer(participant.handle(), topic, q.get(), nullptr),
+                           std::string("dds_create_writer(") + kDiscoveryTopic + ")");
+    announce();
+  }
+
+  /// Says on ros_discovery_info which readers and writers this node has, as
+  /// rmw_cyclonedds does after each change, so that ROS 2's tools name it.
+  void announce() {
+    std::vector<Gid> readers;
+    std::vector<Gid> writer_gids;
+    for (const auto& s : subscriptions) readers.push_back(gidOf(s.reader));
+    for (const auto& [name, w] : writers) writer_gids.push_back(gidOf(w.writer));
+    rmw_dds_common_msg_dds__NodeEntitiesInfo_ node{};
+    node.node_namespace[0] = '/';
+    node_name.copy(node.node_name, sizeof(node.node_name) - 1);
+    node.reader_gid_seq = {static_cast<std::uint32_t>(readers.size()),
+                           static_cast<std::uint32_t>(readers.size()), readers.data(), false};
+    node.writer_gid_seq = {static_cast<std::uint32_t>(writer_gids.size()),
+                           static_cast<std::uint32_t>(writer_gids.size()), writer_gids.data(),
+                           false};
+    rmw_dds_common_msg_dds__ParticipantEntitiesInfo_ info{};
+    info.gid = gidOf(participant.handle());
+    info.node_entities_info_seq = {1, 1, &node, false};
+    const dds_return_t rc = dds_write(discovery, &info);
+    if (rc < 0) ddsFail(std::string("dds_write(") + kDiscoveryTopic + ")", rc);
+  }
 
   /// The DDS topic of `ros_name` for messages of `descriptor`.
   dds_entity_t topic(const std::string& ros_name, const dds_topic_descriptor_t& descriptor) {
@@ -149,6 +198,8 @@ struct Node::Impl {
   std::map<std::string, Writer> writers;  // by ROS topic name
   std::vector<Subscription> subscriptions;
   std::map<std::string, std::pair<std::size_t, std::string>> refused;
+  std::string node_name;
+  dds_entity_t discovery = 0;  ///< the writer of ros_discovery_info
 };
 
 Node::Node(const NodeConfig& config) {
@@ -174,6 +225,7 @@ void Node::advertise(const std::string& topic, Qos qos) {
       ddsChecked(dds_create_writer(impl_->participant.handle(), t, q.get(), nullptr),
                  "dds_create_writer(" + topic + ")");
   impl_->writers.emplace(topic, Impl::Writer{writer, qos, &descriptor});
+  impl_->announce();
 }
 
 template <class M>
@@ -224,6 +276,7 @@ void Node::subscribe(const std::string& topic, Qos qos, std::function<void(M&&)>
     }
   };
   impl_->subscriptions.push_back({topic, reader, std::move(deliver)});
+  impl_->announce();
 }
 
 std::size_t Node::spin(std::chrono::milliseconds timeout) {

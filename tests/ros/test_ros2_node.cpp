@@ -21,6 +21,7 @@
 
 #include "../common/kitti_test_data.hpp"
 #include "nav_msgs.h"
+#include "rmw_dds_common.h"
 
 namespace dcl::ros2 {
 namespace {
@@ -170,6 +171,57 @@ TEST(Ros2Node, SamplesGoOnTheWireAsRos2sPlainLittleEndianCdr) {
   // The wire pads the payload to a multiple of 4 and says so in the options.
   ASSERT_GE(wire.size(), ours.size());
   EXPECT_TRUE(std::equal(ours.begin() + 4, ours.end(), wire.begin() + 4));
+}
+
+TEST(Ros2Node, ItNamesItselfAndItsEntitiesOnRosDiscoveryInfo) {
+  // What rmw_cyclonedds reads to list nodes (ros2 node list, rqt_graph): the
+  // participant's GUID, the node's name, and its readers' and writers' GUIDs.
+  NodeConfig config = loopback();
+  config.name = "dcl_test_node_" + std::to_string(::getpid());
+  Node a(config);
+  a.advertise<Odometry>(topic("announced_odometry"), Qos::reliable);
+  a.advertise<Path>(topic("announced_path"), Qos::transient_local);
+  a.subscribe<PointCloud2>(topic("announced_points"), Qos::sensor_data, [](PointCloud2&&) {});
+  const dds_entity_t participant = dds_create_participant(170, nullptr, nullptr);
+  ASSERT_GT(participant, 0);
+  const dds_entity_t t =
+      dds_create_topic(participant, &rmw_dds_common_msg_dds__ParticipantEntitiesInfo__desc,
+                       "ros_discovery_info", nullptr, nullptr);
+  ASSERT_GT(t, 0);
+  // Transient local, as the writer: the node's last word reaches a late reader.
+  dds_qos_t* qos = dds_create_qos();
+  dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
+  dds_qset_durability(qos, DDS_DURABILITY_TRANSIENT_LOCAL);
+  const dds_entity_t reader = dds_create_reader(participant, t, qos, nullptr);
+  dds_delete_qos(qos);
+  ASSERT_GT(reader, 0);
+  bool found = false;
+  const auto deadline = std::chrono::steady_clock::now() + 20s;
+  while (!found && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(50ms);
+    void* samples[8] = {};
+    dds_sample_info_t infos[8];
+    const dds_return_t n = dds_take(reader, samples, infos, 8, 8);
+    for (dds_return_t i = 0; i < n; ++i) {
+      const auto& info =
+          *static_cast<const rmw_dds_common_msg_dds__ParticipantEntitiesInfo_*>(samples[i]);
+      if (!infos[i].valid_data || info.node_entities_info_seq._length != 1) continue;
+      const auto& node = info.node_entities_info_seq._buffer[0];
+      if (std::string(node.node_name) != config.name) continue;  // another test's node
+      if (node.writer_gid_seq._length < 2 || node.reader_gid_seq._length < 1) continue;
+      found = true;
+      EXPECT_EQ(std::string(node.node_namespace), "/");
+      EXPECT_EQ(node.writer_gid_seq._length, 2u);
+      EXPECT_EQ(node.reader_gid_seq._length, 1u);
+      // A GUID's 16 bytes, then zeros; the participant's prefix starts its entities'.
+      for (int k = 16; k < 24; ++k) EXPECT_EQ(info.gid.data[k], 0);
+      for (int k = 0; k < 12; ++k)
+        EXPECT_EQ(node.writer_gid_seq._buffer[0].data[k], info.gid.data[k]);
+    }
+    if (n > 0) dds_return_loan(reader, samples, n);
+  }
+  dds_delete(participant);
+  EXPECT_TRUE(found);
 }
 
 TEST(Ros2Node, MisuseIsAnError) {

@@ -3,8 +3,10 @@
 // A ROS 2 participant without ROS 2: topics read and written on DDS as
 // rmw_cyclonedds does (DDS topic "rt/<name>", ROS 2's type names and QoS
 // profiles, the default partition, apart from the swarm's), so that ROS 2
-// nodes, RViz and Foxglove see them as any other node's.
+// nodes, RViz and Foxglove see them as any other node's; the node itself is
+// announced on "ros_discovery_info" as rmw_dds_common defines it.
 
+#include <cctype>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -35,6 +37,8 @@ struct NodeConfig {
   /// Network interface with multicast discovery on it (e.g. "lo"); empty:
   /// Cyclone's default or CYCLONEDDS_URI.
   std::string interface {};
+  /// The node's name, as `ros2 node list` shows it (in namespace "/").
+  std::string name = "dcl_slam";
 
   /// Lists the fields and their rules (core/config.hpp).
   template <class V>
@@ -45,6 +49,10 @@ struct NodeConfig {
                   comm::isPlainName(interface, "_-.:"),
               "must be empty or a network interface name (up to 15 letters, digits or '_', '-', "
               "'.', ':')");
+    v.field("name", name, "the node's name")
+        .rule(!name.empty() && name.size() <= 256 && comm::isPlainName(name, "_") &&
+                  std::isdigit(static_cast<unsigned char>(name.front())) == 0,
+              "must be letters, digits and '_', not starting with a digit, up to 256");
   }
 };
 
