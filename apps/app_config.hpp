@@ -149,6 +149,9 @@ struct RosSection {
   double publish_period = 1.0;                       ///< s between paths, maps and markers
   int map_keyframes = 30;                            ///< keyframes in the local map
   double map_voxel = 0.4;                            ///< m, voxel edge of the local map
+  std::string whole_map_topic = "/{robot}/map";      ///< sensor_msgs/PointCloud2, every keyframe
+  double whole_map_period = 10.0;                    ///< s between whole maps
+  double whole_map_voxel = 0.8;                      ///< m, voxel edge of the whole map
 
   template <class Visitor>
   void visit(Visitor& v) {
@@ -184,6 +187,12 @@ struct RosSection {
         .within(0.05, 3600.0);
     v.field("map_keyframes", map_keyframes, "keyframes in the local map").within(1, 1000);
     v.field("map_voxel", map_voxel, "m, voxel edge of the local map").within(0.05, 10.0);
+    v.field("whole_map_topic", whole_map_topic,
+            "sensor_msgs/PointCloud2 of all the robot's keyframes in the group's frame: the "
+            "group's robots' whole maps together are the group's merged map");
+    v.field("whole_map_period", whole_map_period, "s between whole maps").within(0.05, 3600.0);
+    v.field("whole_map_voxel", whole_map_voxel, "m, voxel edge of the whole map")
+        .within(0.05, 10.0);
   }
 };
 

@@ -419,6 +419,7 @@ struct LiveRobot {
   std::size_t frames = 0;  ///< scans through the front-end
   std::size_t published_keyframes = 0;
   double next_publish = 0.0;
+  double next_whole_map = 0.0;
 
   LiveRobot(const RobotOptions& options, const AppConfig& app, std::uint8_t robot)
       : o(options),
@@ -435,8 +436,9 @@ struct LiveRobot {
   /// fails before the node joins).
   template <class Config>
   static Config checkedTopics(const RosSection& ros, Config config) {
-    for (const std::string* topic : {&ros.points, &ros.odometry_topic, &ros.path_topic,
-                                     &ros.map_topic, &ros.loops_topic, &ros.odometry_in}) {
+    for (const std::string* topic :
+         {&ros.points, &ros.odometry_topic, &ros.path_topic, &ros.map_topic, &ros.loops_topic,
+          &ros.odometry_in, &ros.whole_map_topic}) {
       if (!topic->empty()) Middleware::checkTopic(*topic);
     }
     return config;
@@ -465,8 +467,9 @@ struct LiveRobot {
       s.sensor_frame = o.frame_ids[3];
     }
     if (s.interface.empty()) s.interface = o.dds.interface;  // one network for both, unless told
-    for (std::string* name : {&s.points, &s.odometry_in, &s.map_frame, &s.odom_frame, &s.base_frame,
-                              &s.odometry_topic, &s.path_topic, &s.map_topic, &s.loops_topic}) {
+    for (std::string* name :
+         {&s.points, &s.odometry_in, &s.map_frame, &s.odom_frame, &s.base_frame, &s.odometry_topic,
+          &s.path_topic, &s.map_topic, &s.loops_topic, &s.whole_map_topic}) {
       *name = named(*name, o.robot);
     }
     return s;
@@ -547,7 +550,23 @@ struct LiveRobot {
     ros_node.publish("/tf", tf);
   }
 
-  /// The path, local map and loop markers, every ros.publish_period (or at once).
+  /// The points of keyframes `first`... at their estimates, one a voxel of edge `voxel`.
+  [[nodiscard]] core::PointCloud mapOf(std::size_t first, double voxel) const {
+    const auto& keyframes = node.keyframes();
+    std::vector<Eigen::Vector3f> points;
+    for (std::size_t i = first; i < keyframes.size(); ++i) {
+      const Eigen::Isometry3f T = node.estimate(keyframes[i].id).cast<float>();
+      for (const Eigen::Vector3f& p : keyframes[i].cloud.points) points.push_back(T * p);
+    }
+    core::PointCloud map;
+    for (const Eigen::Vector3d& p : registration::voxelDownsample(points, voxel)) {
+      map.points.push_back(p.cast<float>());
+    }
+    return map;
+  }
+
+  /// The path, local map and loop markers, every ros.publish_period, and the
+  /// whole map every ros.whole_map_period (or all at once).
   void publishMaps(bool at_once = false) {
     const auto& keyframes = node.keyframes();
     if ((!at_once && look() < next_publish) || keyframes.empty()) return;
@@ -560,18 +579,17 @@ struct LiveRobot {
     }
     ros_node.publish(ros.path_topic, path);
 
-    std::vector<Eigen::Vector3f> points;
     const std::size_t first =
         keyframes.size() - std::min(keyframes.size(), static_cast<std::size_t>(ros.map_keyframes));
-    for (std::size_t i = first; i < keyframes.size(); ++i) {
-      const Eigen::Isometry3f T = node.estimate(keyframes[i].id).cast<float>();
-      for (const Eigen::Vector3f& p : keyframes[i].cloud.points) points.push_back(T * p);
+    ros_node.publish(ros.map_topic,
+                     msg::toPointCloud2(mapOf(first, ros.map_voxel), {stamp, ros.map_frame}));
+    // Every keyframe, at a lower rate: each robot's whole map in the group's
+    // frame, the group's merged map together (no cloud crosses the radio for it).
+    if (at_once || now >= next_whole_map) {
+      next_whole_map = now + ros.whole_map_period;
+      ros_node.publish(ros.whole_map_topic,
+                       msg::toPointCloud2(mapOf(0, ros.whole_map_voxel), {stamp, ros.map_frame}));
     }
-    core::PointCloud map;
-    for (const Eigen::Vector3d& p : registration::voxelDownsample(points, ros.map_voxel)) {
-      map.points.push_back(p.cast<float>());
-    }
-    ros_node.publish(ros.map_topic, msg::toPointCloud2(map, {stamp, ros.map_frame}));
 
     // The accepted inter-robot loops, as lines between the two keyframes.
     const backend::PoseGraph graph = node.graph();
@@ -646,10 +664,11 @@ struct LiveRobot {
     ros_node.template advertise<msg::TFMessage>("/tf", Qos::reliable);
     ros_node.template advertise<msg::Path>(ros.path_topic, Qos::transient_local);
     ros_node.template advertise<msg::PointCloud2>(ros.map_topic, Qos::transient_local);
+    ros_node.template advertise<msg::PointCloud2>(ros.whole_map_topic, Qos::transient_local);
     ros_node.template advertise<msg::MarkerArray>(ros.loops_topic, Qos::transient_local);
-    fmt::print("robot {}: reading {} on {}; publishing {}, {}, {}, {} and /tf\n", o.robot,
+    fmt::print("robot {}: reading {} on {}; publishing {}, {}, {}, {}, {} and /tf\n", o.robot,
                ros.points, Middleware::where(ros), ros.odometry_topic, ros.path_topic,
-               ros.map_topic, ros.loops_topic);
+               ros.map_topic, ros.whole_map_topic, ros.loops_topic);
     std::fflush(stdout);
     const auto tick = std::chrono::milliseconds(static_cast<std::int64_t>(kTickPeriod * 1000.0));
     while (stopSignal() == 0) {

@@ -3,8 +3,8 @@ robots' topics until SIGINT or SIGTERM, then writes what it heard as JSON.
 
 Usage: ros1_listener.py OUT.json ROBOT...   (ROS_MASTER_URI set)
 
-For each robot: its odometry messages, the last path, the last local map's
-size and frame, the last loop markers; and every tf edge seen."""
+For each robot: its odometry messages, the last path, the last local and
+whole maps' sizes and frames, the last loop markers; and every tf edge seen."""
 import json
 import signal
 import sys
@@ -24,7 +24,8 @@ def stamp(header):
 def main():
     out, robots = sys.argv[1], sys.argv[2:]
     heard = {r: {"odometry": 0, "odometry_frame": None, "path": [], "path_frame": None,
-                 "map_points": 0, "map_frame": None, "map_fields": [], "loop_markers": None}
+                 "map_points": 0, "map_frame": None, "map_fields": [], "loop_markers": None,
+                 "whole_map_points": 0, "whole_map_frame": None}
              for r in robots}
     tf_edges = set()
     lock = threading.Lock()
@@ -47,6 +48,11 @@ def main():
             heard[robot]["map_frame"] = m.header.frame_id
             heard[robot]["map_fields"] = [f.name for f in m.fields]
 
+    def on_whole_map(robot, m):
+        with lock:
+            heard[robot]["whole_map_points"] = m.width * m.height
+            heard[robot]["whole_map_frame"] = m.header.frame_id
+
     def on_loops(robot, m):
         with lock:
             heard[robot]["loop_markers"] = [[k.ns, k.action, len(k.points)] for k in m.markers]
@@ -62,6 +68,7 @@ def main():
         rospy.Subscriber(f"/{r}/path", Path, lambda m, r=r: on_path(r, m))
         rospy.Subscriber(f"/{r}/local_map", PointCloud2, lambda m, r=r: on_map(r, m))
         rospy.Subscriber(f"/{r}/loops", MarkerArray, lambda m, r=r: on_loops(r, m))
+        rospy.Subscriber(f"/{r}/map", PointCloud2, lambda m, r=r: on_whole_map(r, m))
     rospy.Subscriber("/tf", TFMessage, on_tf)
     signal.signal(signal.SIGINT, lambda *_: done.set())
     signal.signal(signal.SIGTERM, lambda *_: done.set())

@@ -159,6 +159,10 @@ class Ros1Robot(unittest.TestCase):
             self.assertGreater(h["map_points"], 1000, r)
             self.assertEqual(h["map_frame"], world)
             self.assertEqual(h["map_fields"][:3], ["x", "y", "z"])
+            # The whole map (every keyframe, coarser voxels) reaches further
+            # than the local one (the last 30 keyframes).
+            self.assertEqual(h["whole_map_frame"], world)
+            self.assertGreater(h["whole_map_points"], 1000, r)
             self.assertIsNotNone(h["loop_markers"], r)
             self.assertIn([world, odom], heard["tf"])
             self.assertIn([odom, base], heard["tf"])
