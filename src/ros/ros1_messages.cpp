@@ -7,8 +7,11 @@
 #include <bit>
 #include <cmath>
 #include <cstring>
+#include <initializer_list>
 #include <iterator>
 #include <limits>
+#include <string>
+#include <string_view>
 #include <type_traits>
 #include <utility>
 
@@ -473,44 +476,20 @@ void read(Reader& in, msg::MarkerArray& m) {
 
 // ---- each type's name, MD5 sum and full definition, as genpy holds them ----
 //
-// Copied from Debian's python3-*-msgs (ROS 1 Noetic's message packages):
-// `_type`, `_md5sum` and `_full_text` of each message class, what rosbag and a
-// ROS 1 connection header carry, byte for byte: the trailing spaces and the
-// tabs in them are ROS 1's too (the tests compare them with genpy's).
+// From Debian's python3-*-msgs (ROS 1 Noetic's message packages): `_type`,
+// `_md5sum` and `_full_text` of each message class, what rosbag and a ROS 1
+// connection header carry, byte for byte: each type's own definition once,
+// composed into the full texts as genpy composes them; the trailing spaces and
+// the tabs in them are ROS 1's too (the tests compare them with genpy's).
 
-constexpr MessageType kCloud{
-    "sensor_msgs/PointCloud2", "1158d486dd51d683ce2f1be655c3c181",
-    R"def(# This message holds a collection of N-dimensional points, which may
-# contain additional information such as normals, intensity, etc. The
-# point data is stored as a binary blob, its layout described by the
-# contents of the "fields" array.
-
-# The point cloud data may be organized 2d (image-like) or 1d
-# (unordered). Point clouds organized as 2d images may be produced by
-# camera depth sensors such as stereo or time-of-flight.
-
-# Time of sensor data acquisition, and the coordinate frame ID (for 3d
-# points).
-Header header
-
-# 2D structure of the point cloud. If the cloud is unordered, height is
-# 1 and width is the length of the point cloud.
-uint32 height
-uint32 width
-
-# Describes the channels and their layout in the binary data blob.
-PointField[] fields
-
-bool    is_bigendian # Is this data bigendian?
-uint32  point_step   # Length of a point in bytes
-uint32  row_step     # Length of a row in bytes
-uint8[] data         # Actual point data, size is (row_step*height)
-
-bool is_dense        # True if there are no invalid points
-
-================================================================================
-MSG: std_msgs/Header
-# Standard metadata for higher-level stamped data types.
+/// One message type's own definition (its .msg file's text; a few end without
+/// a newline, as theirs do).
+struct Definition {
+  std::string_view name;
+  std::string_view text;
+};
+constexpr Definition kHeader{"std_msgs/Header",
+                             R"def(# Standard metadata for higher-level stamped data types.
 # This is generally used to communicate timestamped data 
 # in a particular coordinate frame.
 # 
@@ -523,10 +502,9 @@ uint32 seq
 time stamp
 #Frame this data is associated with
 string frame_id
-
-================================================================================
-MSG: sensor_msgs/PointField
-# This message holds the description of one point entry in the
+)def"};
+constexpr Definition kPointField{
+    "sensor_msgs/PointField", R"def(# This message holds the description of one point entry in the
 # PointCloud2 message format.
 uint8 INT8    = 1
 uint8 UINT8   = 2
@@ -542,36 +520,9 @@ uint32 offset    # Offset from start of point struct
 uint8  datatype  # Datatype enumeration, see above
 uint32 count     # How many elements in the field
 )def"};
-
-constexpr MessageType kOdometry{
-    "nav_msgs/Odometry", "cd5e73d190d741a2f92e81eda573aca7",
-    R"def(# This represents an estimate of a position and velocity in free space.  
-# The pose in this message should be specified in the coordinate frame given by header.frame_id.
-# The twist in this message should be specified in the coordinate frame given by the child_frame_id
-Header header
-string child_frame_id
-geometry_msgs/PoseWithCovariance pose
-geometry_msgs/TwistWithCovariance twist
-
-================================================================================
-MSG: std_msgs/Header
-# Standard metadata for higher-level stamped data types.
-# This is generally used to communicate timestamped data 
-# in a particular coordinate frame.
-# 
-# sequence ID: consecutively increasing ID 
-uint32 seq
-#Two-integer timestamp that is expressed as:
-# * stamp.sec: seconds (stamp_secs) since epoch (in Python the variable is called 'secs')
-# * stamp.nsec: nanoseconds since stamp_secs (in Python the variable is called 'nsecs')
-# time-handling sugar is provided by the client library
-time stamp
-#Frame this data is associated with
-string frame_id
-
-================================================================================
-MSG: geometry_msgs/PoseWithCovariance
-# This represents a pose in free space with uncertainty.
+constexpr Definition kPoseWithCovariance{
+    "geometry_msgs/PoseWithCovariance",
+    R"def(# This represents a pose in free space with uncertainty.
 
 Pose pose
 
@@ -580,32 +531,31 @@ Pose pose
 # In order, the parameters are:
 # (x, y, z, rotation about X axis, rotation about Y axis, rotation about Z axis)
 float64[36] covariance
-
-================================================================================
-MSG: geometry_msgs/Pose
-# A representation of pose in free space, composed of position and orientation. 
+)def"};
+constexpr Definition kPose{
+    "geometry_msgs/Pose",
+    R"def(# A representation of pose in free space, composed of position and orientation. 
 Point position
 Quaternion orientation
-
-================================================================================
-MSG: geometry_msgs/Point
-# This contains the position of a point in free space
+)def"};
+constexpr Definition kPoint{"geometry_msgs/Point",
+                            R"def(# This contains the position of a point in free space
 float64 x
 float64 y
 float64 z
-
-================================================================================
-MSG: geometry_msgs/Quaternion
-# This represents an orientation in free space in quaternion form.
+)def"};
+constexpr Definition kQuaternion{
+    "geometry_msgs/Quaternion",
+    R"def(# This represents an orientation in free space in quaternion form.
 
 float64 x
 float64 y
 float64 z
 float64 w
-
-================================================================================
-MSG: geometry_msgs/TwistWithCovariance
-# This expresses velocity in free space with uncertainty.
+)def"};
+constexpr Definition kTwistWithCovariance{
+    "geometry_msgs/TwistWithCovariance",
+    R"def(# This expresses velocity in free space with uncertainty.
 
 Twist twist
 
@@ -614,16 +564,15 @@ Twist twist
 # In order, the parameters are:
 # (x, y, z, rotation about X axis, rotation about Y axis, rotation about Z axis)
 float64[36] covariance
-
-================================================================================
-MSG: geometry_msgs/Twist
-# This expresses velocity in free space broken into its linear and angular parts.
+)def"};
+constexpr Definition kTwist{
+    "geometry_msgs/Twist",
+    R"def(# This expresses velocity in free space broken into its linear and angular parts.
 Vector3  linear
 Vector3  angular
-
-================================================================================
-MSG: geometry_msgs/Vector3
-# This represents a vector in free space. 
+)def"};
+constexpr Definition kVector3{"geometry_msgs/Vector3",
+                              R"def(# This represents a vector in free space. 
 # It is only meant to represent a direction. Therefore, it does not
 # make sense to apply a translation to it (e.g., when applying a 
 # generic rigid transformation to a Vector3, tf2 will only apply the
@@ -633,107 +582,14 @@ MSG: geometry_msgs/Vector3
 float64 x
 float64 y
 float64 z)def"};
-
-constexpr MessageType kPoseStamped{"geometry_msgs/PoseStamped", "d3812c3cbc69362b77dc0b19b345f8f5",
-                                   R"def(# A Pose with reference coordinate frame and timestamp
+constexpr Definition kPoseStamped{"geometry_msgs/PoseStamped",
+                                  R"def(# A Pose with reference coordinate frame and timestamp
 Header header
 Pose pose
-
-================================================================================
-MSG: std_msgs/Header
-# Standard metadata for higher-level stamped data types.
-# This is generally used to communicate timestamped data 
-# in a particular coordinate frame.
-# 
-# sequence ID: consecutively increasing ID 
-uint32 seq
-#Two-integer timestamp that is expressed as:
-# * stamp.sec: seconds (stamp_secs) since epoch (in Python the variable is called 'secs')
-# * stamp.nsec: nanoseconds since stamp_secs (in Python the variable is called 'nsecs')
-# time-handling sugar is provided by the client library
-time stamp
-#Frame this data is associated with
-string frame_id
-
-================================================================================
-MSG: geometry_msgs/Pose
-# A representation of pose in free space, composed of position and orientation. 
-Point position
-Quaternion orientation
-
-================================================================================
-MSG: geometry_msgs/Point
-# This contains the position of a point in free space
-float64 x
-float64 y
-float64 z
-
-================================================================================
-MSG: geometry_msgs/Quaternion
-# This represents an orientation in free space in quaternion form.
-
-float64 x
-float64 y
-float64 z
-float64 w
 )def"};
-
-constexpr MessageType kPath{"nav_msgs/Path", "6227e2b7e9cce15051f669a5e197bbf7",
-                            R"def(#An array of poses that represents a Path for a robot to follow
-Header header
-geometry_msgs/PoseStamped[] poses
-
-================================================================================
-MSG: std_msgs/Header
-# Standard metadata for higher-level stamped data types.
-# This is generally used to communicate timestamped data 
-# in a particular coordinate frame.
-# 
-# sequence ID: consecutively increasing ID 
-uint32 seq
-#Two-integer timestamp that is expressed as:
-# * stamp.sec: seconds (stamp_secs) since epoch (in Python the variable is called 'secs')
-# * stamp.nsec: nanoseconds since stamp_secs (in Python the variable is called 'nsecs')
-# time-handling sugar is provided by the client library
-time stamp
-#Frame this data is associated with
-string frame_id
-
-================================================================================
-MSG: geometry_msgs/PoseStamped
-# A Pose with reference coordinate frame and timestamp
-Header header
-Pose pose
-
-================================================================================
-MSG: geometry_msgs/Pose
-# A representation of pose in free space, composed of position and orientation. 
-Point position
-Quaternion orientation
-
-================================================================================
-MSG: geometry_msgs/Point
-# This contains the position of a point in free space
-float64 x
-float64 y
-float64 z
-
-================================================================================
-MSG: geometry_msgs/Quaternion
-# This represents an orientation in free space in quaternion form.
-
-float64 x
-float64 y
-float64 z
-float64 w
-)def"};
-
-constexpr MessageType kTf{"tf2_msgs/TFMessage", "94810edda583a504dfda3829e70d7eec",
-                          R"def(geometry_msgs/TransformStamped[] transforms
-
-================================================================================
-MSG: geometry_msgs/TransformStamped
-# This expresses a transform from coordinate frame header.frame_id
+constexpr Definition kTransformStamped{
+    "geometry_msgs/TransformStamped",
+    R"def(# This expresses a transform from coordinate frame header.frame_id
 # to the coordinate frame child_frame_id
 #
 # This message is mostly used by the 
@@ -743,58 +599,17 @@ MSG: geometry_msgs/TransformStamped
 Header header
 string child_frame_id # the frame id of the child frame
 Transform transform
-
-================================================================================
-MSG: std_msgs/Header
-# Standard metadata for higher-level stamped data types.
-# This is generally used to communicate timestamped data 
-# in a particular coordinate frame.
-# 
-# sequence ID: consecutively increasing ID 
-uint32 seq
-#Two-integer timestamp that is expressed as:
-# * stamp.sec: seconds (stamp_secs) since epoch (in Python the variable is called 'secs')
-# * stamp.nsec: nanoseconds since stamp_secs (in Python the variable is called 'nsecs')
-# time-handling sugar is provided by the client library
-time stamp
-#Frame this data is associated with
-string frame_id
-
-================================================================================
-MSG: geometry_msgs/Transform
-# This represents the transform between two coordinate frames in free space.
+)def"};
+constexpr Definition kTransform{
+    "geometry_msgs/Transform",
+    R"def(# This represents the transform between two coordinate frames in free space.
 
 Vector3 translation
 Quaternion rotation
-
-================================================================================
-MSG: geometry_msgs/Vector3
-# This represents a vector in free space. 
-# It is only meant to represent a direction. Therefore, it does not
-# make sense to apply a translation to it (e.g., when applying a 
-# generic rigid transformation to a Vector3, tf2 will only apply the
-# rotation). If you want your data to be translatable too, use the
-# geometry_msgs/Point message instead.
-
-float64 x
-float64 y
-float64 z
-================================================================================
-MSG: geometry_msgs/Quaternion
-# This represents an orientation in free space in quaternion form.
-
-float64 x
-float64 y
-float64 z
-float64 w
 )def"};
-
-constexpr MessageType kMarkers{"visualization_msgs/MarkerArray", "d155b9ce5188fbaf89745847fd5882d7",
-                               R"def(Marker[] markers
-
-================================================================================
-MSG: visualization_msgs/Marker
-# See http://www.ros.org/wiki/rviz/DisplayTypes/Marker and http://www.ros.org/wiki/rviz/Tutorials/Markers%3A%20Basic%20Shapes for more information on using this message with rviz
+constexpr Definition kMarker{
+    "visualization_msgs/Marker",
+    R"def(# See http://www.ros.org/wiki/rviz/DisplayTypes/Marker and http://www.ros.org/wiki/rviz/Tutorials/Markers%3A%20Basic%20Shapes for more information on using this message with rviz
 
 uint8 ARROW=0
 uint8 CUBE=1
@@ -838,90 +653,120 @@ string text
 # NOTE: only used for MESH_RESOURCE markers
 string mesh_resource
 bool mesh_use_embedded_materials
-
-================================================================================
-MSG: std_msgs/Header
-# Standard metadata for higher-level stamped data types.
-# This is generally used to communicate timestamped data 
-# in a particular coordinate frame.
-# 
-# sequence ID: consecutively increasing ID 
-uint32 seq
-#Two-integer timestamp that is expressed as:
-# * stamp.sec: seconds (stamp_secs) since epoch (in Python the variable is called 'secs')
-# * stamp.nsec: nanoseconds since stamp_secs (in Python the variable is called 'nsecs')
-# time-handling sugar is provided by the client library
-time stamp
-#Frame this data is associated with
-string frame_id
-
-================================================================================
-MSG: geometry_msgs/Pose
-# A representation of pose in free space, composed of position and orientation. 
-Point position
-Quaternion orientation
-
-================================================================================
-MSG: geometry_msgs/Point
-# This contains the position of a point in free space
-float64 x
-float64 y
-float64 z
-
-================================================================================
-MSG: geometry_msgs/Quaternion
-# This represents an orientation in free space in quaternion form.
-
-float64 x
-float64 y
-float64 z
-float64 w
-
-================================================================================
-MSG: geometry_msgs/Vector3
-# This represents a vector in free space. 
-# It is only meant to represent a direction. Therefore, it does not
-# make sense to apply a translation to it (e.g., when applying a 
-# generic rigid transformation to a Vector3, tf2 will only apply the
-# rotation). If you want your data to be translatable too, use the
-# geometry_msgs/Point message instead.
-
-float64 x
-float64 y
-float64 z
-================================================================================
-MSG: std_msgs/ColorRGBA
-float32 r
+)def"};
+constexpr Definition kColorRGBA{"std_msgs/ColorRGBA", R"def(float32 r
 float32 g
 float32 b
 float32 a
 )def"};
+constexpr Definition kPointCloud2{
+    "sensor_msgs/PointCloud2",
+    R"def(# This message holds a collection of N-dimensional points, which may
+# contain additional information such as normals, intensity, etc. The
+# point data is stored as a binary blob, its layout described by the
+# contents of the "fields" array.
+
+# The point cloud data may be organized 2d (image-like) or 1d
+# (unordered). Point clouds organized as 2d images may be produced by
+# camera depth sensors such as stereo or time-of-flight.
+
+# Time of sensor data acquisition, and the coordinate frame ID (for 3d
+# points).
+Header header
+
+# 2D structure of the point cloud. If the cloud is unordered, height is
+# 1 and width is the length of the point cloud.
+uint32 height
+uint32 width
+
+# Describes the channels and their layout in the binary data blob.
+PointField[] fields
+
+bool    is_bigendian # Is this data bigendian?
+uint32  point_step   # Length of a point in bytes
+uint32  row_step     # Length of a row in bytes
+uint8[] data         # Actual point data, size is (row_step*height)
+
+bool is_dense        # True if there are no invalid points
+)def"};
+constexpr Definition kOdometry{
+    "nav_msgs/Odometry",
+    R"def(# This represents an estimate of a position and velocity in free space.  
+# The pose in this message should be specified in the coordinate frame given by header.frame_id.
+# The twist in this message should be specified in the coordinate frame given by the child_frame_id
+Header header
+string child_frame_id
+geometry_msgs/PoseWithCovariance pose
+geometry_msgs/TwistWithCovariance twist
+)def"};
+constexpr Definition kPath{"nav_msgs/Path",
+                           R"def(#An array of poses that represents a Path for a robot to follow
+Header header
+geometry_msgs/PoseStamped[] poses
+)def"};
+constexpr Definition kTFMessage{"tf2_msgs/TFMessage",
+                                R"def(geometry_msgs/TransformStamped[] transforms
+)def"};
+constexpr Definition kMarkerArray{"visualization_msgs/MarkerArray", R"def(Marker[] markers
+)def"};
+/// A type's full definition as genpy writes it: its own, then that of each
+/// type it uses, each after a line of '=' and "MSG: <type>".
+std::string fullText(const Definition& type, std::initializer_list<Definition> uses) {
+  std::string text(type.text);
+  for (const Definition& use : uses) {
+    text += "\n" + std::string(80, '=') + "\nMSG: ";
+    text += use.name;
+    text += "\n";
+    text += use.text;
+  }
+  return text;
+}
 
 }  // namespace
 
 template <>
 const MessageType& messageType<msg::PointCloud2>() {
-  return kCloud;
+  static const std::string text = fullText(kPointCloud2, {kHeader, kPointField});
+  static const MessageType type{"sensor_msgs/PointCloud2", "1158d486dd51d683ce2f1be655c3c181",
+                                text};
+  return type;
 }
 template <>
 const MessageType& messageType<msg::Odometry>() {
-  return kOdometry;
+  static const std::string text =
+      fullText(kOdometry, {kHeader, kPoseWithCovariance, kPose, kPoint, kQuaternion,
+                           kTwistWithCovariance, kTwist, kVector3});
+  static const MessageType type{"nav_msgs/Odometry", "cd5e73d190d741a2f92e81eda573aca7", text};
+  return type;
 }
 template <>
 const MessageType& messageType<msg::PoseStamped>() {
-  return kPoseStamped;
+  static const std::string text = fullText(kPoseStamped, {kHeader, kPose, kPoint, kQuaternion});
+  static const MessageType type{"geometry_msgs/PoseStamped", "d3812c3cbc69362b77dc0b19b345f8f5",
+                                text};
+  return type;
 }
 template <>
 const MessageType& messageType<msg::Path>() {
-  return kPath;
+  static const std::string text =
+      fullText(kPath, {kHeader, kPoseStamped, kPose, kPoint, kQuaternion});
+  static const MessageType type{"nav_msgs/Path", "6227e2b7e9cce15051f669a5e197bbf7", text};
+  return type;
 }
 template <>
 const MessageType& messageType<msg::TFMessage>() {
-  return kTf;
+  static const std::string text =
+      fullText(kTFMessage, {kTransformStamped, kHeader, kTransform, kVector3, kQuaternion});
+  static const MessageType type{"tf2_msgs/TFMessage", "94810edda583a504dfda3829e70d7eec", text};
+  return type;
 }
 template <>
 const MessageType& messageType<msg::MarkerArray>() {
-  return kMarkers;
+  static const std::string text =
+      fullText(kMarkerArray, {kMarker, kHeader, kPose, kPoint, kQuaternion, kVector3, kColorRGBA});
+  static const MessageType type{"visualization_msgs/MarkerArray",
+                                "d155b9ce5188fbaf89745847fd5882d7", text};
+  return type;
 }
 
 template <class M>
