@@ -101,7 +101,7 @@ void convertBagClouds(const ConvertOptions& o) {
   fmt::print("{} scans of {} -> {}/\n", stamps.size(), o.topic, o.output);
 }
 
-std::string describeTopics(const std::vector<io::BagTopic>& topics) {
+std::string topicsWithCounts(const std::vector<io::BagTopic>& topics) {
   std::string list;
   for (const auto& t : topics) {
     list += fmt::format("{}{} ({}, {} messages)", list.empty() ? " " : ", ", t.name, t.type,
@@ -125,7 +125,7 @@ constexpr BagReaders kRos2Bag{&ros2::listMcapTopics, &ros2::readMcapTrajectory,
 void convertBag(const ConvertOptions& o, const BagReaders& bag) {
   const auto topics = bag.topics(o.input);
   if (o.topic.empty())
-    throw core::Error("a bag input needs --topic; its topics:" + describeTopics(topics));
+    throw core::Error("a bag input needs --topic; its topics:" + topicsWithCounts(topics));
   if (o.cloud_format != "bin" && o.cloud_format != "pcd" && o.cloud_format != "ply") {
     throw core::Error("--cloud-format: '" + o.cloud_format + "' is not bin, pcd or ply");
   }

@@ -33,13 +33,8 @@ constexpr KnownType kPoseStampedType = {"geometry_msgs/PoseStamped",
 constexpr KnownType kPoseCovarianceType = {"geometry_msgs/PoseWithCovarianceStamped",
                                            "953b798c0f514ff060a53a3498ce6246"};
 
-std::string_view bareTopic(std::string_view topic) {
-  while (!topic.empty() && topic.front() == '/') topic.remove_prefix(1);
-  return topic;
-}
-
 bool onTopic(const detail::BagConnection& c, const std::string& topic) {
-  return bareTopic(c.topic) == bareTopic(topic);
+  return sameTopic(c.topic, topic);
 }
 
 [[noreturn]] void failTopic(const std::string& path, const std::string& topic,
@@ -69,11 +64,7 @@ std::vector<BagTopic> topicsOf(const detail::BagFile& bag) {
 }
 
 std::string describeTopics(const detail::BagFile& bag) {
-  std::string list;
-  for (const auto& t : topicsOf(bag)) {
-    list.append(list.empty() ? "" : ", ").append(t.name).append(" (").append(t.type).append(")");
-  }
-  return list.empty() ? "none" : list;
+  return describeTopics(topicsOf(bag));
 }
 
 /// The messages of `topic`, in time order; throws unless the topic exists and
@@ -181,6 +172,22 @@ std::pair<double, Eigen::Isometry3d> readStampedPose(ByteReader& in, std::string
 }
 
 }  // namespace
+
+bool sameTopic(std::string_view a, std::string_view b) {
+  const auto bare = [](std::string_view topic) {
+    while (!topic.empty() && topic.front() == '/') topic.remove_prefix(1);
+    return topic;
+  };
+  return bare(a) == bare(b);
+}
+
+std::string describeTopics(const std::vector<BagTopic>& topics) {
+  std::string list;
+  for (const auto& t : topics) {
+    list.append(list.empty() ? "" : ", ").append(t.name).append(" (").append(t.type).append(")");
+  }
+  return list.empty() ? "none" : list;
+}
 
 std::vector<BagTopic> listBagTopics(const std::string& path) {
   return topicsOf(detail::BagFile(path));

@@ -81,11 +81,6 @@ std::string rosOneName(std::string_view type) {
   return out;
 }
 
-std::string_view bareTopic(std::string_view topic) {
-  while (!topic.empty() && topic.front() == '/') topic.remove_prefix(1);
-  return topic;
-}
-
 [[noreturn]] void failTopic(const std::string& path, const std::string& topic,
                             const std::string& what) {
   throw core::FileError({path}, fmt::format("topic '{}': {}", topic, what));
@@ -119,11 +114,7 @@ std::vector<io::BagTopic> topicsOf(const io::McapReader& file) {
 }
 
 std::string describeTopics(const io::McapReader& file) {
-  std::string list;
-  for (const auto& t : topicsOf(file)) {
-    list.append(list.empty() ? "" : ", ").append(t.name).append(" (").append(t.type).append(")");
-  }
-  return list.empty() ? "none" : list;
+  return io::describeTopics(topicsOf(file));
 }
 
 /// The messages of `topic`, in log-time order; throws unless the topic exists
@@ -132,7 +123,7 @@ std::vector<io::McapMessageRef> topicMessages(const io::McapReader& file, const 
                                               const std::vector<std::string_view>& types) {
   std::vector<std::uint16_t> ids;
   for (const io::McapChannel& c : file.channels()) {
-    if (bareTopic(c.topic) != bareTopic(topic)) continue;
+    if (!io::sameTopic(c.topic, topic)) continue;
     const std::string type = rosOneName(typeOf(file, c));
     const bool known = std::any_of(types.begin(), types.end(),
                                    [&](std::string_view t) { return rosOneName(t) == type; });

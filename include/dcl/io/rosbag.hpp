@@ -19,6 +19,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include <dcl/core/point_cloud.hpp>
@@ -36,6 +37,13 @@ struct BagTopic {
 /// The topics of the bag at `path`, sorted by name. Throws core::FileError
 /// when the bag cannot be opened or read.
 std::vector<BagTopic> listBagTopics(const std::string& path);
+
+/// Whether two topic names are the same topic, a leading '/' or not.
+bool sameTopic(std::string_view a, std::string_view b);
+
+/// "name (type), ..." of `topics`, or "none": what an error about a missing
+/// topic lists.
+std::string describeTopics(const std::vector<BagTopic>& topics);
 
 /// A scan and the stamp of its message header.
 struct StampedCloud {
