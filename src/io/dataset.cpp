@@ -219,12 +219,13 @@ FrontEndSpec readFrontEnd(MapReader odometry, const DatasetReadOptions& options)
   out.file = requiredPath(odometry, "file", "front-end", options);
   if (auto f = odometry.optional("format")) {
     out.format = odometry.string("format", *f);
-    if (out.format != "tum" && out.format != "kitti" && out.format != "bag" && out.format != "mcap" &&
-        out.format != "auto")
+    if (out.format != "tum" && out.format != "kitti" && out.format != "bag" &&
+        out.format != "mcap" && out.format != "auto")
       odometry.fail(f->Mark(), odometry.keyOf("format"), "expected tum, kitti, bag, mcap or auto");
   }
-  const bool bag = out.format == "bag" || out.format == "mcap" ||
-                   (out.format == "auto" && (out.file.ends_with(".bag") || out.file.ends_with(".mcap")));
+  const bool bag =
+      out.format == "bag" || out.format == "mcap" ||
+      (out.format == "auto" && (out.file.ends_with(".bag") || out.file.ends_with(".mcap")));
   if (bag) {
     const auto topic = odometry.optional("topic");
     if (!topic) {
@@ -363,7 +364,8 @@ void writeRobot(std::ostream& out, const RobotSpec& robot) {
   if (!robot.odometry.empty()) {
     out << "    odometry:  # an external front-end's poses, instead of the built-in odometry\n";
     out << "      file: " << scalar(robot.odometry.file) << "\n";
-    out << "      format: " << scalar(robot.odometry.format) << "  # tum | kitti | bag | mcap | auto\n";
+    out << "      format: " << scalar(robot.odometry.format)
+        << "  # tum | kitti | bag | mcap | auto\n";
     if (!robot.odometry.topic.empty())
       out << "      topic: " << scalar(robot.odometry.topic) << "\n";
     if (!robot.odometry.times.empty())

@@ -55,9 +55,9 @@ struct ScanSourceSpec {
 };
 
 /// The poses of a robot's own front-end (LIO-SAM, FAST-LIO2, wheel and IMU
-/// odometry, ...), in a pose file or a ROS 1 or ROS 2 (MCAP) bag topic, taken instead of the built-in LiDAR odometry, the scans then
-/// serving keyframe clouds, descriptors and verification only. The poses are
-/// T_world_body on the scans' clock, read as odometry::ExternalOdometryConfig
+/// odometry, ...), in a pose file or a ROS 1 or ROS 2 (MCAP) bag topic, taken instead of the
+/// built-in LiDAR odometry, the scans then serving keyframe clouds, descriptors and verification
+/// only. The poses are T_world_body on the scans' clock, read as odometry::ExternalOdometryConfig
 /// reads them (the configuration's `external` section gives T_body_sensor and
 /// the noise model).
 struct FrontEndSpec {
