@@ -5,11 +5,10 @@
 #include <set>
 #include <string>
 
-#include <sys/mman.h>
-#include <unistd.h>
-
 #include <dcl/core/error.hpp>
 #include <dcl/io/rosbag.hpp>
+
+#include "fuzz_input_file.hpp"
 
 namespace {
 
@@ -40,20 +39,11 @@ void readAll(const std::string& path) {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  const int fd = memfd_create("bag", 0);
-  if (fd < 0) return 0;
-  std::size_t written = 0;
-  while (written < size) {
-    const ssize_t n = write(fd, data + written, size - written);
-    if (n <= 0) break;
-    written += static_cast<std::size_t>(n);
-  }
-  if (written == size) {
+  dcl::fuzz::withMemoryFile("bag", data, size, [](const std::string& path) {
     try {
-      readAll("/proc/self/fd/" + std::to_string(fd));
+      readAll(path);
     } catch (const dcl::core::FileError&) {
     }
-  }
-  close(fd);
+  });
   return 0;
 }

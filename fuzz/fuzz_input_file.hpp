@@ -11,6 +11,7 @@
 #include <string>
 #include <system_error>
 
+#include <sys/mman.h>
 #include <unistd.h>
 
 namespace dcl::fuzz {
@@ -46,5 +47,22 @@ class InputFile {
  private:
   std::string path_;
 };
+
+/// Hands the input to `read` as an anonymous in-memory file (a memfd, read
+/// through /proc/self/fd/N), for readers that open a path: no file system is
+/// touched. Does nothing if the memfd cannot be made or filled.
+template <class Read>
+void withMemoryFile(const char* name, const std::uint8_t* data, std::size_t size, Read read) {
+  const int fd = ::memfd_create(name, 0);
+  if (fd < 0) return;
+  std::size_t written = 0;
+  while (written < size) {
+    const ssize_t n = ::write(fd, data + written, size - written);
+    if (n <= 0) break;
+    written += static_cast<std::size_t>(n);
+  }
+  if (written == size) read("/proc/self/fd/" + std::to_string(fd));
+  ::close(fd);
+}
 
 }  // namespace dcl::fuzz

@@ -6,12 +6,11 @@
 #include <set>
 #include <string>
 
-#include <sys/mman.h>
-#include <unistd.h>
-
 #include <dcl/core/error.hpp>
 #include <dcl/io/mcap.hpp>
 #include <dcl/ros/ros2_bag.hpp>
+
+#include "fuzz_input_file.hpp"
 
 namespace {
 
@@ -52,22 +51,12 @@ void readTopics(const std::string& path) {
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  const int fd = memfd_create("mcap", 0);
-  if (fd < 0) return 0;
-  std::size_t written = 0;
-  while (written < size) {
-    const ssize_t n = write(fd, data + written, size - written);
-    if (n <= 0) break;
-    written += static_cast<std::size_t>(n);
-  }
-  if (written == size) {
-    const std::string path = "/proc/self/fd/" + std::to_string(fd);
+  dcl::fuzz::withMemoryFile("mcap", data, size, [](const std::string& path) {
     try {
       readMessages(path);
       readTopics(path);
     } catch (const dcl::core::FileError&) {
     }
-  }
-  close(fd);
+  });
   return 0;
 }
