@@ -1,9 +1,13 @@
 // `dcl-slam play`: one robot's scans of a dataset published on a ROS 2 topic
 // (sensor_msgs/PointCloud2, best effort) in real time, or faster with --rate,
-// stamped with the wall clock as a LiDAR driver stamps them: a robot's
+// stamped with the wall clock as a LiDAR driver stamps them (or with their
+// stamps in the dataset, as a bag player keeps the recorded ones): a robot's
 // stream to try `robot --ros2`, RViz or Foxglove with, without a robot.
+// With --epoch, the scans go out on a swarm's clock, as `robot` plays them:
+// scan i of robot r at (start time of r + t_i) / rate after the epoch.
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <cstdio>
 #include <limits>
 #include <string>
@@ -34,10 +38,18 @@ struct PlayOptions {
   double rate = 1.0;                        ///< dataset seconds per wall second
   std::size_t max_frames = 0;               ///< 0: all
   double wait = 10.0;                       ///< s to wait for a subscriber before the first scan
+  double epoch = 0.0;           ///< Unix time (s) of swarm time 0; 0: the first scan goes at once
+  bool dataset_stamps = false;  ///< stamps from the dataset, not the wall clock
 };
 
 void runPlay(const PlayOptions& o, const AppConfig& config) {
   if (!(o.rate > 0.0) || o.rate > 1000.0) throw core::Error("--rate must be in (0, 1000]");
+  if (!(o.epoch >= 0.0) || !std::isfinite(o.epoch))
+    throw core::Error("--epoch must be a finite number of seconds since 1970 (0: now)");
+  if (o.epoch > 0.0 && std::abs(unixNow() - o.epoch) * o.rate > 86400.0)
+    throw core::Error(fmt::format(
+        "--epoch {:.0f} is more than a day of dataset time from now: a mistyped epoch or rate",
+        o.epoch));
   const StopSignals signals;
   const io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const auto index = spec.robotIndex(o.robot);
@@ -62,32 +74,44 @@ void runPlay(const PlayOptions& o, const AppConfig& config) {
   fmt::print("play: {} scans of robot {} on {} ({} subscriber{}), rate {}\n", frames, o.robot,
              topic, node.matched(topic), node.matched(topic) == 1 ? "" : "s", o.rate);
   std::fflush(stdout);
-  const double start = unixNow();
-  const double first = frames > 0 ? scans->stamp(0) : 0.0;
+  // Scan i is due at start + (t_i - first) / rate on the wall clock.
+  const double start = o.epoch > 0.0 ? o.epoch : unixNow();
+  const double first = o.epoch > 0.0 ? -spec.robots[*index].start_time
+                       : frames > 0  ? scans->stamp(0)
+                                     : 0.0;
   std::size_t sent = 0;
   for (std::size_t i = 0; i < frames && stopSignal() == 0; ++i) {
     const double due = start + (scans->stamp(i) - first) / o.rate;
+    const double stamp = o.dataset_stamps ? scans->stamp(i) : due;
     while (stopSignal() == 0 && unixNow() < due)
       std::this_thread::sleep_for(std::chrono::duration<double>(std::min(0.05, due - unixNow())));
     if (!o.odometry.empty()) {
       if (const auto pose = truth.at(scans->stamp(i))) {
         msg::Odometry m;
-        m.header = {due, named(config.ros.odom_frame, o.robot)};
+        m.header = {stamp, named(config.ros.odom_frame, o.robot)};
         m.child_frame_id = named(config.ros.base_frame, o.robot);
         m.pose = *pose;
         node.publish(odometry_topic, m);
       }
     }
     core::PointCloud scan = scans->scan(i);
-    // Stamped with the wall clock when the scan is due, as a driver stamps it;
-    // played faster, the sweep is faster too (its points' times divided by
-    // the rate), so that a front-end sees the motion the scans hold.
-    for (float& t : scan.time) t = static_cast<float>(t / o.rate);
-    node.publish(topic, msg::toPointCloud2(scan, {due, frame}));
+    // Stamped with the wall clock when the scan is due, as a driver stamps it,
+    // and played faster, the sweep is faster too (its points' times divided
+    // by the rate), so that a front-end sees the motion the scans hold. With
+    // the dataset's stamps, the sweep keeps its dataset time too.
+    if (!o.dataset_stamps) {
+      for (float& t : scan.time) t = static_cast<float>(t / o.rate);
+    }
+    node.publish(topic, msg::toPointCloud2(scan, {stamp, frame}));
     ++sent;
   }
-  fmt::print("play: {} scans published in {:.1f} s; scan i stamped {:.6f} + (t_i - {:.6f}) / {}\n",
-             sent, unixNow() - start, start, first, o.rate);
+  if (o.dataset_stamps)
+    fmt::print("play: {} scans published in {:.1f} s; scan i stamped t_i, its dataset stamp\n",
+               sent, unixNow() - start);
+  else
+    fmt::print(
+        "play: {} scans published in {:.1f} s; scan i stamped {:.6f} + (t_i - {:.6f}) / {}\n", sent,
+        unixNow() - start, start, first, o.rate);
   if (stopSignal() != 0) throw CLI::RuntimeError(128 + stopSignal());
 }
 
@@ -116,6 +140,13 @@ void addPlayCommand(CLI::App& app, const AppConfig& config) {
   cmd->add_option("--wait", o->wait, "s to wait for a subscriber before the first scan")
       ->check(kNonNegative)
       ->capture_default_str();
+  cmd->add_option("--epoch", o->epoch,
+                  "Unix time (s) of swarm time 0: scan i goes out (start time + t_i) / rate after "
+                  "it, as `robot` plays it (0: the first scan at once)")
+      ->capture_default_str();
+  cmd->add_flag("--dataset-stamps", o->dataset_stamps,
+                "stamp each scan with its stamp in the dataset, as a bag player keeps the recorded "
+                "stamps (default: the wall clock when it is due, as a driver stamps it)");
   cmd->callback([o, &config] { runPlay(*o, config); });
 }
 

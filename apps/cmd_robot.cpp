@@ -678,6 +678,22 @@ struct LiveRobot {
       publishKeyframe();
       publishMaps();
     }
+    // Told to stop: the round with the peers under way, or the one the last
+    // loops call for, ends first (a peer stopped at the same time does the
+    // same), for --settle s at most; a second signal leaves at once.
+    const double settle_until = look() + o.settle;
+    if (!node.settled() && o.settle > 0.0) {
+      fmt::print(
+          "robot {}: finishing the round with its peers (at most {:g} s; signal again to "
+          "leave now)\n",
+          o.robot, o.settle);
+      std::fflush(stdout);
+    }
+    while (stopSignalCount() < 2 && !node.settled() && look() < settle_until) {
+      ros_node.spin(tick);
+      node.tick(look());
+      publishMaps();
+    }
     node.stop();
     // The final estimates, as the outputs will hold them, and time for the
     // middleware's threads to send them before the node leaves.
@@ -723,7 +739,7 @@ void runLiveRobot(const RobotOptions& o, const AppConfig& config) {
                     o.robot));
   }
   const StopSignals signals;
-  OutputFolder output(o.out + "/" + o.robot, o.force, {"robot.log"});
+  OutputFolder output(o.out + "/" + o.robot, o.force, {"robot.log", "play.log"});
   LiveRobot<Middleware> live(o, config, static_cast<std::uint8_t>(*o.id));
   live.run();
   const RobotOutputs outputs = live.outputs();
@@ -783,7 +799,7 @@ void runRobot(const RobotOptions& o, const AppConfig& config) {
   if (index > 254) throw core::Error("a swarm holds robots 0..254: '" + o.robot + "' is past it");
   // Staged beside OUT/ROBOT before the run (an unwritable place fails at once)
   // and put in place whole; the swarm's log of this process stays in it.
-  OutputFolder output(o.out + "/" + o.robot, o.force, {"robot.log"});
+  OutputFolder output(o.out + "/" + o.robot, o.force, {"robot.log", "play.log"});
   const std::string& folder = output.out();
   RobotPlayer player(o, std::move(spec), index, robotConfig(config), config.external);
   const bool finished = player.run();
@@ -830,7 +846,7 @@ void addRobotCommand(CLI::App& app, const AppConfig& config) {
       ->capture_default_str();
   cmd->add_option("--settle", o->settle,
                   "s of swarm time at most to keep running after --linger while rounds with "
-                  "peers go on (their last loops and unconverged rounds)")
+                  "peers go on (their last loops and unconverged rounds); live: s after Ctrl-C")
       ->capture_default_str();
   cmd->add_option("--max-frames", o->max_frames, "scans to play at most (0: all)")
       ->check(kNonNegative)

@@ -5,6 +5,12 @@
 // its robots: metrics.json and report.html. The robots share nothing but the
 // network: each builds its own view of the dataset and talks to the others
 // only through DDS, as robot computers would.
+//
+// With --ros2, each robot is a live robot (`robot --ros2`) fed by its own
+// `play` process over ROS 2 topics, as a LiDAR driver feeds it on a robot:
+// the players share the swarm clock, stamp the scans as the dataset does,
+// and once they are done and --linger has passed, the robots are stopped
+// with SIGINT, as an operator stops them, and write their outputs.
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
@@ -52,6 +58,9 @@ using SteadyClock = std::chrono::steady_clock;
 constexpr auto kPollPeriod = std::chrono::milliseconds(100);
 /// s a robot gets to write its outputs after SIGTERM before it is killed.
 constexpr double kStopGrace = 30.0;
+/// s a live robot finishes its round with its peers after SIGINT at most
+/// (robot --settle's default), before kStopGrace starts.
+constexpr double kLiveSettle = 60.0;
 
 struct SwarmOptions {
   std::string dataset;
@@ -66,7 +75,9 @@ struct SwarmOptions {
   /// reads the dataset and builds its world before the clock starts.
   double start_delay = 3.0;
   bool json = false;
-  bool force = false;  ///< replace --out even when it holds files of another program
+  bool force = false;            ///< replace --out even when it holds files of another program
+  bool ros2 = false;             ///< live robots, each fed over ROS 2 by a player
+  std::uint32_t ros_domain = 0;  ///< the ROS 2 topics' DDS domain, with --ros2
 };
 
 double since(SteadyClock::time_point start) {
@@ -138,6 +149,8 @@ struct Child {
   std::string log;  ///< its stdout and stderr
   pid_t pid = -1;
   std::optional<int> status;  ///< waitpid's, once it ended
+  bool player = false;        ///< a `play` process feeding a live robot
+  bool told_to_stop = false;  ///< a live robot sent SIGINT, its normal end
 };
 
 /// "exit code 3" or "signal 9".
@@ -150,6 +163,13 @@ std::string describeStatus(int status) {
 
 bool succeeded(int status) {
   return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
+/// A child's end is a success: exit code 0, or, for a live robot told to
+/// stop, the exit code of its SIGINT.
+bool succeeded(const Child& c) {
+  return c.status && (succeeded(*c.status) || (c.told_to_stop && WIFEXITED(*c.status) &&
+                                               WEXITSTATUS(*c.status) == 128 + SIGINT));
 }
 
 /// The last non-empty line of a file (a failed robot's reason), or "".
@@ -237,6 +257,40 @@ std::vector<std::string> robotArgs(const std::string& exe, const GlobalOptions& 
   return args;
 }
 
+/// A live robot's scans: one topic per robot, whatever ros.points says.
+std::string pointsTopic(const std::string& robot) {
+  return "/" + robot + "/points";
+}
+
+/// `exe ... robot --ros2`: a live robot reading its scans from its player.
+std::vector<std::string> liveRobotArgs(const std::string& exe, const GlobalOptions& g,
+                                       const SwarmOptions& o, const std::string& name,
+                                       std::size_t id, const std::string& swarm) {
+  std::vector<std::string> args{exe};
+  if (!g.config.empty()) args.insert(args.end(), {"--config", g.config});
+  if (!g.log_level.empty()) args.insert(args.end(), {"--log-level", g.log_level});
+  args.insert(args.end(), {"robot", "--ros2", "--robot", name, "--id", std::to_string(id),
+                           "--points", pointsTopic(name), "--out", o.out, "--swarm", swarm,
+                           "--domain", std::to_string(o.domain), "--ros-domain",
+                           std::to_string(o.ros_domain), "--interface", o.interface});
+  return args;
+}
+
+/// `exe ... play`: robot `name`'s scans on the swarm clock, with their dataset stamps.
+std::vector<std::string> playerArgs(const std::string& exe, const GlobalOptions& g,
+                                    const SwarmOptions& o, const std::string& name, double epoch) {
+  std::vector<std::string> args{exe};
+  if (!g.config.empty()) args.insert(args.end(), {"--config", g.config});
+  if (!g.log_level.empty()) args.insert(args.end(), {"--log-level", g.log_level});
+  if (datasetReadOptions().allow_outside_paths) args.emplace_back("--allow-outside-paths");
+  args.insert(args.end(),
+              {"play", "--dataset", o.dataset, "--robot", name, "--points", pointsTopic(name),
+               "--epoch", fmt::format("{:.6f}", epoch), "--rate", fmt::format("{}", o.rate),
+               "--dataset-stamps", "--max-frames", std::to_string(o.max_frames), "--ros-domain",
+               std::to_string(o.ros_domain), "--interface", o.interface});
+  return args;
+}
+
 void signalAll(std::vector<Child>& children, int signal) {
   for (const Child& c : children) {
     if (!c.status) ::kill(c.pid, signal);
@@ -260,19 +314,38 @@ bool reap(std::vector<Child>& children) {
 
 /// Waits for every child; the first to fail (or a signal to this process)
 /// stops the others with SIGTERM, and after kStopGrace with SIGKILL.
-/// Returns the first failed child, if one failed.
+/// Live robots (children with players) get SIGINT once every player is
+/// done and `linger` s of swarm time have passed. Returns the first failed
+/// child, if one failed.
 std::optional<std::size_t> waitAll(std::vector<Child>& children, std::optional<double> end,
-                                   double epoch, double rate) {
+                                   double epoch, double rate, double linger) {
   core::ProgressBar progress("swarm", end ? static_cast<std::size_t>(std::ceil(*end)) : 0,
                              "s swarm time");
+  const bool live =
+      std::any_of(children.begin(), children.end(), [](const Child& c) { return c.player; });
   std::optional<std::size_t> failed;
   std::optional<SteadyClock::time_point> stopping;
+  std::optional<SteadyClock::time_point> played;  ///< when the last player ended
   while (!reap(children)) {
+    // A live robot ending before it is told to is a failure, as is a player's error.
     if (!failed) {
       for (std::size_t i = 0; i < children.size(); ++i) {
-        if (children[i].status && !succeeded(*children[i].status)) {
+        if (children[i].status && !succeeded(children[i])) {
           failed = i;
           break;
+        }
+      }
+    }
+    if (live && !played && std::all_of(children.begin(), children.end(), [](const Child& c) {
+          return !c.player || c.status.has_value();
+        })) {
+      played = SteadyClock::now();
+    }
+    if (played && !failed && since(*played) >= linger / rate) {
+      for (Child& c : children) {
+        if (!c.player && !c.status && !c.told_to_stop) {
+          ::kill(c.pid, SIGINT);
+          c.told_to_stop = true;
         }
       }
     }
@@ -281,6 +354,8 @@ std::optional<std::size_t> waitAll(std::vector<Child>& children, std::optional<d
       signalAll(children, SIGTERM);
     }
     if (stopping && since(*stopping) > kStopGrace) signalAll(children, SIGKILL);
+    if (played && since(*played) > linger / rate + kLiveSettle + kStopGrace)
+      signalAll(children, SIGKILL);
     const auto running =
         std::count_if(children.begin(), children.end(), [](const Child& c) { return !c.status; });
     const double now = std::max(0.0, (unixNow() - epoch) * rate);
@@ -291,7 +366,7 @@ std::optional<std::size_t> waitAll(std::vector<Child>& children, std::optional<d
   progress.finish();
   if (!failed) {
     for (std::size_t i = 0; i < children.size() && !failed; ++i) {
-      if (!succeeded(*children[i].status)) failed = i;
+      if (!succeeded(children[i])) failed = i;
     }
   }
   return failed;
@@ -420,6 +495,7 @@ Json metricsJson(const SwarmRun& run, const std::vector<eval::RobotMetrics>& met
   return {{"dataset", run.summary.dataset},
           {"duration_s", run.summary.duration},
           {"transport", "dds"},
+          {"scans", o.ros2 ? "ros2" : "dataset"},
           {"swarm", swarm},
           {"rate", o.rate},
           {"wall_time_s", wall_time},
@@ -450,7 +526,7 @@ void printTable(const Json& m, const std::string& out) {
       "frame); "
       "loops: intra + inter kept/found; max lag: s of swarm time a scan was played late\n");
   fmt::print(
-      "{} s of swarm time at rate {} in {:.1f} s; outputs in {} (metrics.json, "
+      "{:.1f} s of swarm time at rate {} in {:.1f} s; outputs in {} (metrics.json, "
       "report.html, one folder per robot with its robot.log)\n",
       m["duration_s"].get<double>(), m["rate"].get<double>(), m["wall_time_s"].get<double>(), out);
 }
@@ -481,16 +557,33 @@ void runSwarmProcesses(const SwarmOptions& options, const GlobalOptions& g) {
     Child& c = children.emplace_back();
     c.name = name;
     c.log = folder + "/robot.log";
-    c.pid = spawn(robotArgs(exe, g, o, name, swarm, epoch), c.log);
+    c.pid = spawn(o.ros2 ? liveRobotArgs(exe, g, o, name, r, swarm)
+                         : robotArgs(exe, g, o, name, swarm, epoch),
+                  c.log);
   }
-  if (!o.json)
-    fmt::print(
-        "swarm '{}': {} robot processes over DDS on {}, rate {}, logs in {}/NAME/robot.log\n",
-        swarm, children.size(), o.interface.empty() ? "the default interface" : o.interface, o.rate,
-        out.out());
+  for (const std::size_t r : o.ros2 ? robots : std::vector<std::size_t>{}) {
+    const std::string& name = spec.robots[r].name;
+    Child& c = children.emplace_back();
+    c.name = name;
+    c.log = o.out + "/" + name + "/play.log";
+    c.player = true;
+    c.pid = spawn(playerArgs(exe, g, o, name, epoch), c.log);
+  }
+  if (!o.json) {
+    const std::string where = o.interface.empty() ? "the default interface" : o.interface;
+    if (o.ros2)
+      fmt::print(
+          "swarm '{}': {} live robots over DDS on {}, each fed its scans over ROS 2 (domain {}) "
+          "by a player, rate {}, logs in {}/NAME/robot.log and play.log\n",
+          swarm, robots.size(), where, o.ros_domain, o.rate, out.out());
+    else
+      fmt::print(
+          "swarm '{}': {} robot processes over DDS on {}, rate {}, logs in {}/NAME/robot.log\n",
+          swarm, children.size(), where, o.rate, out.out());
+  }
   std::fflush(stdout);
 
-  const std::optional<std::size_t> failed = waitAll(children, end, epoch, o.rate);
+  const std::optional<std::size_t> failed = waitAll(children, end, epoch, o.rate, o.linger);
   // A failed robot's last log line, before its log moves with the folder.
   const std::string reason = failed ? lastLine(children[*failed].log) : std::string();
   if (stopSignal() != 0 || failed) out.commit();  // the logs, and what the robots wrote
@@ -502,11 +595,13 @@ void runSwarmProcesses(const SwarmOptions& options, const GlobalOptions& g) {
   }
   if (failed) {
     const Child& c = children[*failed];
-    throw core::Error(
-        fmt::format("robot '{}' (pid {}) failed with {}{}; the others were stopped "
-                    "(its log: {}/{}/robot.log)",
-                    c.name, c.pid, describeStatus(*c.status), reason.empty() ? "" : ": " + reason,
-                    out.out(), c.name));
+    throw core::Error(fmt::format(
+        "{}robot '{}' (pid {}) failed with {}{}; the others were stopped "
+        "(its log: {})",
+        c.player ? "the player of " : "", c.name, c.pid, describeStatus(*c.status),
+        reason.empty() ? "" : ": " + reason,
+        (std::filesystem::path(out.out()) / std::filesystem::path(c.log).lexically_relative(o.out))
+            .string()));
   }
 
   const SwarmRun run = readSwarm(spec, robots, o.out);
@@ -526,6 +621,7 @@ void runSwarmProcesses(const SwarmOptions& options, const GlobalOptions& g) {
 void addSwarmCommand(CLI::App& app, const AppConfig& config) {
   auto o = std::make_shared<SwarmOptions>();
   o->domain = config.dds.domain;
+  o->ros_domain = config.ros.domain;
   CLI::App* cmd = app.add_subcommand(
       "swarm",
       "starts one `dcl-slam robot` process per robot of a dataset on this machine (Cyclone DDS "
@@ -553,6 +649,14 @@ void addSwarmCommand(CLI::App& app, const AppConfig& config) {
       ->capture_default_str();
   cmd->add_flag("--json", o->json, "print metrics.json instead of the table");
   addForceFlag(*cmd, o->force);
+  cmd->add_flag("--ros2", o->ros2,
+                "live robots (robot --ros2), each fed its scans over ROS 2 by a player (play "
+                "--dataset-stamps) on the swarm clock, and stopped with SIGINT --linger after the "
+                "last scan");
+  cmd->add_option("--ros-domain", o->ros_domain,
+                  "with --ros2: DDS domain of the ROS 2 topics (default: ros.domain)")
+      ->check(CLI::Range(0, 232))
+      ->capture_default_str();
   cmd->callback([o, &app] { runSwarmProcesses(*o, globalOptions(app)); });
 }
 

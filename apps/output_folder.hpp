@@ -22,7 +22,7 @@ class OutputFolder {
   /// when `out` is a file, cannot be written, or holds files that no dcl-slam
   /// command wrote (unless `force`: then they are replaced). The files named in
   /// `carried` are another process's, written into `out` while this one runs
-  /// (the swarm's robot.log in OUT/ROBOT): they stay in the new output, linked
+  /// (the swarm's robot.log and play.log in OUT/ROBOT): they stay in the new output, linked
   /// into it, so that their writer goes on writing into them.
   OutputFolder(std::string out, bool force, std::vector<std::string> carried = {});
   /// Removes the staging folder unless it was committed.

@@ -6,10 +6,12 @@ namespace dcl::apps {
 namespace {
 
 volatile std::sig_atomic_t g_signal = 0;
+volatile std::sig_atomic_t g_count = 0;
 
-/// Keeps the first signal: the one that ended the run.
+/// Keeps the first signal (the one that ended the run) and counts them all.
 extern "C" void onStopSignal(int signal) {
   if (g_signal == 0) g_signal = signal;
+  if (g_count < 1000) g_count = g_count + 1;
 }
 
 }  // namespace
@@ -18,6 +20,7 @@ StopSignals::StopSignals()
     : previous_int_(std::signal(SIGINT, onStopSignal)),
       previous_term_(std::signal(SIGTERM, onStopSignal)) {
   g_signal = 0;
+  g_count = 0;
 }
 
 StopSignals::~StopSignals() {
@@ -27,6 +30,10 @@ StopSignals::~StopSignals() {
 
 int stopSignal() {
   return static_cast<int>(g_signal);
+}
+
+int stopSignalCount() {
+  return static_cast<int>(g_count);
 }
 
 double unixNow() {

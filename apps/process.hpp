@@ -27,6 +27,10 @@ class StopSignals {
 /// The first SIGINT or SIGTERM received while a StopSignals lives; 0: none.
 int stopSignal();
 
+/// How many SIGINTs and SIGTERMs arrived while a StopSignals lives (a second
+/// one: stop at once, without finishing what the first let finish).
+int stopSignalCount();
+
 /// s since the Unix epoch, from the system clock (shared by processes on one host).
 double unixNow();
 
