@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include <dcl/backend/pose_graph.hpp>
+#include <dcl/core/colour.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/core/progress.hpp>
 #include <dcl/eval/run_report.hpp>
@@ -220,9 +221,9 @@ Maps buildMaps(const eval::RunSummary& s, const swarm::SwarmResult& result, doub
   return maps;
 }
 
-/// The report's robot colours, so that the map and the plots agree.
+/// The robots' colours, so that the map and the report's plots agree.
 io::Rgb robotColour(std::size_t robot) {
-  const std::array<std::uint8_t, 3> c = eval::robotColour(robot);
+  const std::array<std::uint8_t, 3> c = core::robotColour(robot);
   return {c[0], c[1], c[2]};
 }
 
@@ -354,9 +355,11 @@ Json runSwarmDataset(const std::string& dataset, const std::string& out, std::si
   const swarm::SwarmResult result =
       runWithProgress(std::move(members), sc, "run " + (spec.name.empty() ? o.dataset : spec.name));
 
-  const eval::RunSummary summary = summaryOf(spec, result, truths, config.radio.meter_interval);
+  eval::RunSummary summary = summaryOf(spec, result, truths, config.radio.meter_interval);
   const std::vector<eval::RobotMetrics> metrics = eval::evaluateRun(summary);
   const Maps maps = buildMaps(summary, result, sc.map.voxel);
+  summary.map_points = maps.merged.points;  // the report's picture of map.ply
+  summary.map_robots = maps.merged.robots;
   Json m = metricsJson(summary, metrics, result, maps);
   for (Json& robot : m["robots"]) {
     const auto it = leave_times.find(robot["name"].get<std::string>());

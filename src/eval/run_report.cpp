@@ -15,9 +15,11 @@
 
 #include <fmt/format.h>
 
+#include <dcl/core/colour.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/eval/ate.hpp>
 #include <dcl/eval/run_report.hpp>
+#include <dcl/io/image.hpp>
 
 namespace dcl::eval {
 
@@ -139,8 +141,22 @@ constexpr std::string_view kRejected = "#d62728";
 constexpr std::size_t kMaxLinePoints = 2000;
 
 std::string colour(std::size_t i) {
-  const std::array<std::uint8_t, 3> c = robotColour(i);
+  const std::array<std::uint8_t, 3> c = core::robotColour(i);
   return fmt::format("#{:02x}{:02x}{:02x}", c[0], c[1], c[2]);
+}
+
+// Message kind `i`'s colour in the traffic plot: apart from the robots' (a
+// kind is not a robot), one of eight that colour-blind readers tell apart
+// (Okabe and Ito's), then again darker.
+std::string kindColour(std::size_t i) {
+  static constexpr std::array<std::string_view, 8> kKinds = {
+      "#e69f00", "#56b4e9", "#009e73", "#f0e442", "#0072b2", "#d55e00", "#cc79a7", "#000000"};
+  if (i < kKinds.size()) return std::string(kKinds[i]);
+  const std::string_view c = kKinds[i % kKinds.size()];
+  const auto darker = [&](std::size_t at) {
+    return std::stoi(std::string(c.substr(at, 2)), nullptr, 16) * 2 / 3;
+  };
+  return fmt::format("#{:02x}{:02x}{:02x}", darker(1), darker(3), darker(5));
 }
 
 // HTML-escaped text; control characters (invalid in HTML) become U+FFFD.
@@ -331,8 +347,8 @@ std::string endpoints(const Axes& a, const Line& segment, std::string_view fill)
 
 // One legend entry: a sample of a line (dashed or not) or a filled box, then its label.
 struct LegendEntry {
-  std::string label;  // escaped
-  std::string_view stroke;
+  std::string label;     // escaped
+  std::string stroke;    // a colour
   std::string_view cls;  // line class, or "box" / "box-light"
 };
 
@@ -404,6 +420,16 @@ void addAll(Range& x, Range& y, const std::vector<Line>& lines) {
 
 // Plot area with one scale for x and y (metres look like metres), its height following the
 // data's aspect within limits, the ranges widened to fill it.
+Axes equalScaleAxes(Range x, Range y) {
+  Axes a{80.0, 20.0, 640.0, std::clamp(640.0 * y.span() / x.span(), 240.0, 800.0), x, y};
+  const double metres_per_px = std::max(x.span() / a.width, y.span() / a.height);
+  const double cx = 0.5 * (x.lo + x.hi), cy = 0.5 * (y.lo + y.hi);
+  a.x = {cx - 0.5 * a.width * metres_per_px, cx + 0.5 * a.width * metres_per_px};
+  a.y = {cy - 0.5 * a.height * metres_per_px, cy + 0.5 * a.height * metres_per_px};
+  return a;
+}
+
+// The trajectory plot's area: everything it draws, 4 % around.
 Axes topViewAxes(const TopView& view) {
   Range x, y;
   addAll(x, y, view.ground_truth);
@@ -412,12 +438,7 @@ Axes topViewAxes(const TopView& view) {
   for (const auto& loop : view.loops) addAll(x, y, {loop.first});
   x = padded(x, 0.04);
   y = padded(y, 0.04);
-  Axes a{80.0, 20.0, 640.0, std::clamp(640.0 * y.span() / x.span(), 240.0, 800.0), x, y};
-  const double metres_per_px = std::max(x.span() / a.width, y.span() / a.height);
-  const double cx = 0.5 * (x.lo + x.hi), cy = 0.5 * (y.lo + y.hi);
-  a.x = {cx - 0.5 * a.width * metres_per_px, cx + 0.5 * a.width * metres_per_px};
-  a.y = {cy - 0.5 * a.height * metres_per_px, cy + 0.5 * a.height * metres_per_px};
-  return a;
+  return equalScaleAxes(x, y);
 }
 
 std::string trajectoryLegend(const RunSummary& run, double x, double y) {
@@ -427,8 +448,8 @@ std::string trajectoryLegend(const RunSummary& run, double x, double y) {
   entries.push_back({"full system", "#000", "est"});
   entries.push_back({"odometry only", "#000", "odo"});
   entries.push_back({"ground truth", "#999", "gt"});
-  entries.push_back({"loop, accepted", kAccepted, "loop"});
-  entries.push_back({"loop, rejected", kRejected, "loop"});
+  entries.push_back({"loop, accepted", std::string(kAccepted), "loop"});
+  entries.push_back({"loop, rejected", std::string(kRejected), "loop"});
   return legendSvg(x, y, entries);
 }
 
@@ -465,16 +486,114 @@ std::string trajectoryPlot(const RunSummary& run, const RunPairs& pairs) {
 }
 
 // ------------------------------------------------------------------------------------------------
+// The merged map from above
+
+// `bytes` in base64 (RFC 4648), for a data: URL.
+std::string base64(const std::vector<char>& bytes) {
+  static constexpr std::string_view kDigits =
+      "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  out.reserve((bytes.size() + 2) / 3 * 4);
+  for (std::size_t i = 0; i < bytes.size(); i += 3) {
+    const std::size_t n = std::min<std::size_t>(3, bytes.size() - i);
+    std::uint32_t v = 0;
+    for (std::size_t k = 0; k < 3; ++k) {
+      v = (v << 8) | (k < n ? static_cast<std::uint8_t>(bytes[i + k]) : 0U);
+    }
+    for (std::size_t k = 0; k < 4; ++k) out += k <= n ? kDigits[(v >> (18 - 6 * k)) & 0x3F] : '=';
+  }
+  return out;
+}
+
+// The map's plot area: the robots' estimates and the accepted loops, with a
+// margin of 15 % (at least 20 m) for what they saw around them; one scale for x and y.
+Axes mapAxes(const RunSummary& run) {
+  Range x, y;
+  for (const RobotRun& robot : run.robots) {
+    for (const auto& T : robot.estimate.poses()) {
+      x.add(T.translation().x());
+      y.add(T.translation().y());
+    }
+  }
+  if (!x.valid()) {
+    for (const Eigen::Vector3f& p : run.map_points) {
+      x.add(p.x());
+      y.add(p.y());
+    }
+  }
+  const double margin = std::max(20.0, 0.15 * std::max(x.span(), y.span()));
+  x = {x.lo - margin, x.hi + margin};
+  y = {y.lo - margin, y.hi + margin};
+  return equalScaleAxes(x, y);
+}
+
+// Every map point in its robot's colour on white, a pixel of the plot area each
+// (solid colours, whatever the screen).
+std::vector<char> mapRaster(const RunSummary& run, const Axes& a) {
+  const int width = static_cast<int>(std::lround(a.width));
+  const int height = static_cast<int>(std::lround(a.height));
+  std::vector<std::array<std::uint8_t, 3>> colours;
+  for (std::size_t i = 0; i < run.robots.size(); ++i) colours.push_back(core::robotColour(i));
+  io::Image image(width, height, {255, 255, 255});
+  for (std::size_t i = 0; i < run.map_points.size(); ++i) {
+    const Eigen::Vector3f& p = run.map_points[i];
+    const double u = (p.x() - a.x.lo) / a.x.span() * width;
+    const double v = (a.y.hi - p.y()) / a.y.span() * height;
+    if (!(u >= 0.0 && u < width && v >= 0.0 && v < height)) continue;
+    const auto& c = colours[run.map_robots[i]];
+    image.set(static_cast<int>(u), static_cast<int>(v), {c[0], c[1], c[2]});
+  }
+  return io::encodePng(image);
+}
+
+std::string mapPlot(const RunSummary& run) {
+  const Axes a = mapAxes(run);
+  std::string out =
+      "<p>Every robot's keyframe clouds at the full system's estimates, in the robots' common "
+      "frame (map.ply), coloured by robot; the accepted inter-robot loops in green.</p>\n";
+  out += svgOpen(a, run.robots.size() + 1, "merged map");
+  out += axesSvg(a, "m", "m", "x", "y");
+  out += fmt::format(
+      "<image class=\"map\" x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" "
+      "preserveAspectRatio=\"none\" href=\"data:image/png;base64,{}\"/>\n",
+      fixed(a.left, 1), fixed(a.top, 1), fixed(a.width, 1), fixed(a.height, 1),
+      base64(mapRaster(run, a)));
+  for (const RunLoop& loop : run.loops) {
+    if (!loop.accepted) continue;
+    const Line segment{Point(loop.p_a.x(), loop.p_a.y()), Point(loop.p_b.x(), loop.p_b.y())};
+    out += polyline(a, segment, "loop", kAccepted);
+    out += endpoints(a, segment, kAccepted);
+  }
+  std::vector<LegendEntry> entries;
+  for (std::size_t i = 0; i < run.robots.size(); ++i)
+    entries.push_back({escape(run.robots[i].name), colour(i), "box"});
+  entries.push_back({"loop, accepted", std::string(kAccepted), "loop"});
+  out += legendSvg(a.left + a.width + 16, a.top + 10, entries);
+  return out + "</svg>\n";
+}
+
+// ------------------------------------------------------------------------------------------------
 // ATE bars
 
 std::string bar(const Axes& a, double x, double w, double v, std::string_view cls,
-                std::string_view fill) {
+                std::string_view fill, int decimals) {
   const double top = a.py(v);
   return fmt::format(
              "<rect class=\"{}\" x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" fill=\"{}\" "
              "stroke=\"{}\"/>\n",
              cls, fixed(x, 1), fixed(top, 1), fixed(w, 1), fixed(a.py(0.0) - top, 1), fill, fill) +
-         text(x + w / 2, top - 4, "middle", fixed(v, 2), " class=\"small\"");
+         text(x + w / 2, top - 4, "middle", fixed(v, decimals), " class=\"small\"");
+}
+
+// Decimals that show `values` to three significant digits of the smallest
+// (0.0121 and 0.0127, not 0.01 twice), 2 to 5 of them.
+int significantDecimals(const std::vector<double>& values) {
+  double smallest = std::numeric_limits<double>::infinity();
+  for (const double v : values) {
+    if (v > 0.0 && std::isfinite(v)) smallest = std::min(smallest, v);
+  }
+  if (!std::isfinite(smallest)) return 2;
+  return std::clamp(2 - static_cast<int>(std::floor(std::log10(smallest))), 2, 5);
 }
 
 std::string atePlot(const RunSummary& run, const std::vector<RobotMetrics>& metrics) {
@@ -490,13 +609,20 @@ std::string atePlot(const RunSummary& run, const std::vector<RobotMetrics>& metr
   out += yTicks(a, "m");
   out += fmt::format("<rect class=\"frame\" x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\"/>\n",
                      fixed(a.left, 1), fixed(a.top, 1), fixed(a.width, 1), fixed(a.height, 1));
+  std::vector<double> values;
+  for (const RobotMetrics& m : metrics) {
+    for (const auto& v : {m.ate_rmse, m.ate_rmse_odometry_only}) {
+      if (v) values.push_back(*v);
+    }
+  }
+  const int decimals = significantDecimals(values);
   for (std::size_t i = 0; i < run.robots.size(); ++i) {
     const double x0 = a.left + group * static_cast<double>(i), w = 0.32 * group;
     if (metrics[i].ate_rmse_odometry_only)
-      out +=
-          bar(a, x0 + 0.16 * group, w, *metrics[i].ate_rmse_odometry_only, "box-light", colour(i));
+      out += bar(a, x0 + 0.16 * group, w, *metrics[i].ate_rmse_odometry_only, "box-light",
+                 colour(i), decimals);
     if (metrics[i].ate_rmse)
-      out += bar(a, x0 + 0.52 * group, w, *metrics[i].ate_rmse, "box", colour(i));
+      out += bar(a, x0 + 0.52 * group, w, *metrics[i].ate_rmse, "box", colour(i), decimals);
     out += text(x0 + group / 2, a.top + a.height + 18, "middle", escape(run.robots[i].name));
   }
   out += legendSvg(a.left + a.width + 16, a.top + 10,
@@ -552,8 +678,8 @@ std::string trafficPlot(const RunSummary& run) {
   out += axesSvg(a, "s", "kB", "time", fmt::format("sent per {} s (all robots)", fixed(width, 2)));
   std::vector<LegendEntry> legend;
   for (const auto& [kind, line] : lines) {
-    out += polyline(a, line, "traffic", colour(legend.size()));
-    legend.push_back({escape(kind), colour(legend.size()), "traffic"});
+    out += polyline(a, line, "traffic", kindColour(legend.size()));
+    legend.push_back({escape(kind), kindColour(legend.size()), "traffic"});
   }
   out += legendSvg(a.left + a.width + 16, a.top + 10, legend);
   return out + "</svg>\n";
@@ -703,6 +829,16 @@ void checkReportInput(const RunSummary& run, const std::vector<RobotMetrics>& me
     throw core::Error(fmt::format("run report: meter_interval {} s is not a positive number",
                                   run.meter_interval));
   }
+  if (run.map_robots.size() != run.map_points.size()) {
+    throw core::Error(fmt::format("run report: {} map points but {} robots of map points",
+                                  run.map_points.size(), run.map_robots.size()));
+  }
+  for (const std::uint8_t r : run.map_robots) {
+    if (r >= run.robots.size()) {
+      throw core::Error(fmt::format("run report: a map point of robot {} but the run has {}", r,
+                                    run.robots.size()));
+    }
+  }
 }
 
 }  // namespace
@@ -727,25 +863,12 @@ std::string reportHtml(const RunSummary& run, const std::vector<RobotMetrics>& m
   if (!run.robots.empty()) {
     html += "<h2>Trajectories seen from above</h2>\n" + trajectoryPlot(run, pairRun(run));
   }
+  if (!run.map_points.empty()) html += "<h2>The merged map seen from above</h2>\n" + mapPlot(run);
   if (anyAte(metrics)) html += "<h2>ATE per robot</h2>\n" + atePlot(run, metrics);
   html += "<h2>Traffic over time</h2>\n";
   html += anyTraffic(run) ? trafficPlot(run) : std::string("<p>No traffic recorded.</p>\n");
   html += kindTable(run) + "<h2>Counters</h2>\n" + counterTable(run);
   return html + "</body>\n</html>\n";
-}
-
-std::array<std::uint8_t, 3> robotColour(std::size_t i) {
-  static constexpr std::array<std::array<std::uint8_t, 3>, 10> kPalette = {{{0x1f, 0x77, 0xb4},
-                                                                            {0xff, 0x7f, 0x0e},
-                                                                            {0x94, 0x67, 0xbd},
-                                                                            {0x8c, 0x56, 0x4b},
-                                                                            {0xe3, 0x77, 0xc2},
-                                                                            {0x17, 0xbe, 0xcf},
-                                                                            {0xbc, 0xbd, 0x22},
-                                                                            {0x39, 0x3b, 0x79},
-                                                                            {0x7b, 0x41, 0x73},
-                                                                            {0x8c, 0x6d, 0x31}}};
-  return kPalette[i % kPalette.size()];
 }
 
 }  // namespace dcl::eval

@@ -45,27 +45,32 @@ png_image rgbDescriptor(int width, int height) {
   return png;
 }
 
-/// The image encoded as PNG bytes; throws FileError naming `path` on failure.
-std::vector<char> encodePng(const std::string& path, const Image& image) {
+}  // namespace
+
+std::vector<char> encodePng(const Image& image) {
+  if (image.empty()) throw core::Error("cannot encode an empty image as PNG");
   png_image png = rgbDescriptor(image.width(), image.height());
   png_alloc_size_t size = 0;
   const void* pixels = image.data().data();
   if (!png_image_write_to_memory(&png, nullptr, &size, 0, pixels, 0, nullptr)) {
-    throw core::FileError({path}, std::string("PNG encoding failed: ") + png.message);
+    throw core::Error(std::string("PNG encoding failed: ") + png.message);
   }
   std::vector<char> bytes(size);
   if (!png_image_write_to_memory(&png, bytes.data(), &size, 0, pixels, 0, nullptr)) {
-    throw core::FileError({path}, std::string("PNG encoding failed: ") + png.message);
+    throw core::Error(std::string("PNG encoding failed: ") + png.message);
   }
   bytes.resize(size);
   return bytes;
 }
 
-}  // namespace
-
 void writePng(const std::string& path, const Image& image) {
   if (image.empty()) throw core::FileError({path}, "cannot write an empty image");
-  const std::vector<char> bytes = encodePng(path, image);
+  std::vector<char> bytes;
+  try {
+    bytes = encodePng(image);
+  } catch (const core::Error& e) {
+    throw core::FileError({path}, e.what());
+  }
   writeFileAtomic(
       path,
       [&](std::ostream& out) {

@@ -3,6 +3,7 @@
 #include <limits>
 #include <numeric>
 
+#include <dcl/core/colour.hpp>
 #include <dcl/sim/preview.hpp>
 
 namespace dcl::sim {
@@ -199,18 +200,8 @@ io::Rgb surfaceColour(Surface surface) {
 }
 
 io::Rgb routeColour(std::size_t index) {
-  static const io::Rgb palette[] = {{230, 25, 75},  {255, 225, 25}, {0, 130, 200},
-                                    {245, 130, 48}, {145, 30, 180}, {70, 240, 240},
-                                    {240, 50, 230}, {210, 245, 60}, {250, 190, 212}};
-  constexpr std::size_t n = std::size(palette);
-  if (index < n) return palette[index];
-  // Beyond the palette: the golden-angle walk of hues, at full saturation.
-  const double hue = std::fmod(index * 137.508, 360.0) / 60.0;
-  const double x = 1.0 - std::abs(std::fmod(hue, 2.0) - 1.0);
-  const int sector = static_cast<int>(hue);
-  const double rgb[6][3] = {{1, x, 0}, {x, 1, 0}, {0, 1, x}, {0, x, 1}, {x, 0, 1}, {1, 0, x}};
-  const auto c = [&](int k) { return static_cast<std::uint8_t>(255 * rgb[sector % 6][k]); };
-  return {c(0), c(1), c(2)};
+  const std::array<std::uint8_t, 3> c = core::robotColour(index);
+  return {c[0], c[1], c[2]};
 }
 
 io::Image renderWorldPreview(const World& world, std::span<const core::Trajectory> routes,

@@ -1,13 +1,18 @@
+#include <array>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <regex>
+#include <set>
 #include <sstream>
 #include <string>
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <dcl/core/colour.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/core/se3.hpp>
 #include <dcl/eval/ate.hpp>
@@ -325,6 +330,23 @@ RunSummary hostileNames() {
   return run;
 }
 
+// The run with a map: around each keyframe of each robot, a ring of points 6 m
+// out, as walls around a street would be, in the robot's colour.
+RunSummary withMap(RunSummary run) {
+  for (std::size_t r = 0; r < run.robots.size(); ++r) {
+    for (const Eigen::Isometry3d& T : run.robots[r].estimate.poses()) {
+      for (int k = 0; k < 24; ++k) {
+        const double angle = k * 2.0 * M_PI / 24.0;
+        const Eigen::Vector3d p =
+            T.translation() + 6.0 * Eigen::Vector3d(std::cos(angle), std::sin(angle), 0.0);
+        run.map_points.push_back(p.cast<float>());
+        run.map_robots.push_back(static_cast<std::uint8_t>(r));
+      }
+    }
+  }
+  return run;
+}
+
 TEST(RunReport, HtmlEscapesEveryNameAndHasOneSvgPerPlot) {
   const RunSummary run = hostileNames();
   const std::string html = reportHtml(run, evaluateRun(run));
@@ -413,6 +435,11 @@ TEST(RunReport, RejectsInconsistentInput) {
   RunSummary run = swarm().run;
   const std::vector<RobotMetrics> metrics = evaluateRun(run);
   EXPECT_THROW(reportHtml(run, {metrics[0]}), core::Error);
+  RunSummary map = withMap(run);
+  map.map_robots.pop_back();
+  EXPECT_THROW(reportHtml(map, metrics), core::Error);
+  map.map_robots.push_back(7);
+  EXPECT_THROW(reportHtml(map, metrics), core::Error);
   run.loops.push_back({0, 7, Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero(), true});
   try {
     reportHtml(run, metrics);
@@ -420,6 +447,96 @@ TEST(RunReport, RejectsInconsistentInput) {
   } catch (const core::Error& e) {
     EXPECT_NE(std::string(e.what()).find("loop"), std::string::npos) << e.what();
   }
+}
+
+// RFC 4648 base64, as the report embeds its map.
+std::string fromBase64(const std::string& text) {
+  const std::string digits = "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+  std::string out;
+  std::uint32_t v = 0;
+  int bits = 0;
+  for (const char c : text) {
+    if (c == '=') break;
+    const auto d = digits.find(c);
+    if (d == std::string::npos) throw std::runtime_error("not base64");
+    v = (v << 6) | static_cast<std::uint32_t>(d);
+    bits += 6;
+    if (bits >= 8) {
+      bits -= 8;
+      out += static_cast<char>((v >> bits) & 0xFF);
+    }
+  }
+  return out;
+}
+
+std::size_t pixelsOf(const io::Image& image, const std::array<std::uint8_t, 3>& c, int tolerance) {
+  std::size_t n = 0;
+  const auto& d = image.data();
+  for (std::size_t i = 0; i + 2 < d.size(); i += 3) {
+    if (std::abs(d[i] - c[0]) <= tolerance && std::abs(d[i + 1] - c[1]) <= tolerance &&
+        std::abs(d[i + 2] - c[2]) <= tolerance)
+      ++n;
+  }
+  return n;
+}
+
+TEST(RunReport, MergedMapIsDrawnInEachRobotsColourWithTheAcceptedLoops) {
+  EXPECT_EQ(reportHtml(swarm().run, evaluateRun(swarm().run)).find("merged map"), std::string::npos)
+      << "no map, no picture";
+  const RunSummary run = withMap(swarm().run);
+  const std::string html = reportHtml(run, evaluateRun(run));
+  EXPECT_EQ(count(html, "<svg "), 4u);
+  const std::string prefix = "<image class=\"map\"";
+  ASSERT_EQ(count(html, prefix), 1u);
+  const std::size_t at = html.find("base64,", html.find(prefix)) + 7;
+  const std::string png = fromBase64(html.substr(at, html.find('"', at) - at));
+  const fs::path file =
+      fs::temp_directory_path() / ("dcl_map_" + std::to_string(::getpid()) + ".png");
+  std::ofstream(file, std::ios::binary) << png;
+  const io::Image image = io::readPng(file.string());
+  fs::remove(file);
+  // A pixel of the plot a pixel of the picture.
+  EXPECT_EQ(image.width(), 640);
+  std::size_t drawn = 0;
+  for (std::size_t r = 0; r < kRobots; ++r) {
+    const std::size_t n = pixelsOf(image, core::robotColour(r), 0);
+    EXPECT_GT(n, 1000u) << "robot " << r;
+    drawn += n;
+  }
+  EXPECT_GT(pixelsOf(image, {255, 255, 255}, 0), drawn) << "points on white";
+  // On the map, the accepted loops only (the trajectory plot draws all).
+  std::size_t accepted = 0;
+  for (const RunLoop& loop : run.loops) accepted += loop.accepted ? 1 : 0;
+  EXPECT_EQ(count(html, "<polyline class=\"loop\""), run.loops.size() + accepted);
+}
+
+TEST(RunReport, TrafficKindsHaveTheirOwnColours) {
+  const RunSummary run = hostileNames();
+  const std::string html = reportHtml(run, evaluateRun(run));
+  const std::string traffic = html.substr(html.find("aria-label=\"traffic over time\""));
+  const std::regex stroke("<line class=\"traffic\" stroke=\"(#[0-9a-f]{6})\"");
+  std::set<std::string> legend;
+  for (auto it = std::sregex_iterator(traffic.begin(), traffic.end(), stroke);
+       it != std::sregex_iterator(); ++it)
+    legend.insert((*it)[1].str());
+  EXPECT_EQ(legend.size(), 4u) << "one colour per kind";
+  for (std::size_t r = 0; r < kRobots; ++r) {
+    const auto c = core::robotColour(r);
+    EXPECT_EQ(legend.count(fmt::format("#{:02x}{:02x}{:02x}", c[0], c[1], c[2])), 0u)
+        << "a kind is not a robot";
+  }
+}
+
+TEST(RunReport, AteBarsTellCloseValuesApart) {
+  const RunSummary& run = swarm().run;
+  std::vector<RobotMetrics> metrics = evaluateRun(run);
+  metrics[0].ate_rmse = 0.0121;
+  metrics[1].ate_rmse = 0.0127;
+  metrics[2].ate_rmse = 1.5;
+  const std::string html = reportHtml(run, metrics);
+  EXPECT_NE(html.find(">0.0121</text>"), std::string::npos);
+  EXPECT_NE(html.find(">0.0127</text>"), std::string::npos);
+  EXPECT_NE(html.find(">1.5000</text>"), std::string::npos);
 }
 
 bool haveChromium() {
@@ -444,36 +561,64 @@ std::size_t colouredPixels(const io::Image& image) {
   return n;
 }
 
-TEST(RunReport, RendersInHeadlessChromium) {
-  ASSERT_TRUE(haveChromium()) << "chromium is not installed (scripts/setup installs it)";
-  const fs::path dir = fs::temp_directory_path() / ("dcl_run_report_" + std::to_string(::getpid()));
-  fs::create_directories(dir);
-  const RunSummary run = hostileNames();
-  const std::string html = reportHtml(run, evaluateRun(run));
-  std::ofstream(dir / "report.html") << html;
+// `html` rendered by headless Chromium into DIR/NAME.png (a 1200 x 5000 window: the whole page),
+// and the DOM it built; fails the test when Chromium does.
+struct Rendered {
+  io::Image page;
+  std::string dom;
+};
+
+Rendered render(const fs::path& dir, const std::string& name, const std::string& html) {
+  const fs::path page = dir / (name + ".html"), png = dir / (name + ".png");
+  std::ofstream(page) << html;
   // Its profile, caches and crash folders go to the temporary folder, not the user's home.
   const std::string home = (dir / "home").string();
   const std::string command =
       "HOME='" + home + "' XDG_CONFIG_HOME='" + home + "' XDG_CACHE_HOME='" + home +
       "' timeout 60 chromium --headless --no-sandbox --disable-gpu "
       "--hide-scrollbars --user-data-dir='" +
-      (dir / "profile").string() + "' --screenshot='" + (dir / "page.png").string() +
-      "' --window-size=1200,2000 --dump-dom 'file://" + (dir / "report.html").string() + "' > '" +
-      (dir / "dom.html").string() + "' 2> '" + (dir / "chromium.log").string() + "'";
-  ASSERT_EQ(std::system(command.c_str()), 0) << readText(dir / "chromium.log");
-  ASSERT_TRUE(fs::exists(dir / "page.png")) << readText(dir / "chromium.log");
-  const io::Image page = io::readPng((dir / "page.png").string());
-  EXPECT_EQ(page.width(), 1200);
-  EXPECT_EQ(page.height(), 2000);
+      (dir / "profile").string() + "' --screenshot='" + png.string() +
+      "' --window-size=1200,5000 --dump-dom 'file://" + page.string() + "' > '" +
+      (dir / (name + ".dom")).string() + "' 2> '" + (dir / "chromium.log").string() + "'";
+  EXPECT_EQ(std::system(command.c_str()), 0) << readText(dir / "chromium.log");
+  if (!fs::exists(png)) {
+    ADD_FAILURE() << "no screenshot: " << readText(dir / "chromium.log");
+    return {};
+  }
+  return {io::readPng(png.string()), readText(dir / (name + ".dom"))};
+}
+
+TEST(RunReport, RendersInHeadlessChromium) {
+  ASSERT_TRUE(haveChromium()) << "chromium is not installed (scripts/setup installs it)";
+  const fs::path dir = fs::temp_directory_path() / ("dcl_run_report_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const RunSummary run = hostileNames();
+  const std::string html = reportHtml(run, evaluateRun(run));
+  const Rendered plain = render(dir, "report", html);
+  ASSERT_FALSE(plain.page.empty());
+  EXPECT_EQ(plain.page.width(), 1200);
+  EXPECT_EQ(plain.page.height(), 5000);
   // A blank page has none; the plots colour thousands.
-  EXPECT_GT(colouredPixels(page), 5000u);
-  const std::string dom = readText(dir / "dom.html");
-  EXPECT_EQ(count(dom, "<svg "), 3u);
-  EXPECT_EQ(count(dom, "<polyline "), count(html, "<polyline "));
-  EXPECT_EQ(count(dom, "<rect "), count(html, "<rect "));
-  EXPECT_EQ(dom.find("<script"), std::string::npos);
-  EXPECT_NE(dom.find("&lt;script&gt;alert(\"x\")&lt;/script&gt;"), std::string::npos);
-  fs::remove_all(dir);
+  EXPECT_GT(colouredPixels(plain.page), 5000u);
+  EXPECT_EQ(count(plain.dom, "<svg "), 3u);
+  EXPECT_EQ(count(plain.dom, "<polyline "), count(html, "<polyline "));
+  EXPECT_EQ(count(plain.dom, "<rect "), count(html, "<rect "));
+  EXPECT_EQ(plain.dom.find("<script"), std::string::npos);
+  EXPECT_NE(plain.dom.find("&lt;script&gt;alert(\"x\")&lt;/script&gt;"), std::string::npos);
+
+  // With the merged map: its picture shows, each robot's points in its colour
+  // (many more pixels of it than its lines alone colour).
+  const RunSummary mapped = withMap(run);
+  const Rendered with_map = render(dir, "report_map", reportHtml(mapped, evaluateRun(mapped)));
+  ASSERT_FALSE(with_map.page.empty());
+  EXPECT_EQ(count(with_map.dom, "<svg "), 4u);
+  EXPECT_EQ(count(with_map.dom, "<image class=\"map\""), 1u);
+  for (std::size_t r = 0; r < kRobots; ++r) {
+    const std::size_t before = pixelsOf(plain.page, core::robotColour(r), 40);
+    const std::size_t after = pixelsOf(with_map.page, core::robotColour(r), 40);
+    EXPECT_GT(after, before + 1500) << "robot " << r << ": the map picture is empty";
+  }
+  if (!HasFailure()) fs::remove_all(dir);
 }
 
 }  // namespace

@@ -65,6 +65,11 @@ struct RunSummary {
   std::string dataset;  ///< name or folder, for the title
   std::vector<RobotRun> robots;
   std::vector<RunLoop> loops;
+  /// The merged map, for its picture from above: points in the common frame
+  /// (as the robots' `estimate`) and the robot (index into `robots`) each
+  /// comes from. Empty: the run kept no map.
+  std::vector<Eigen::Vector3f> map_points;
+  std::vector<std::uint8_t> map_robots;
   double meter_interval = 1.0;  ///< s, width of the traffic bins
   double duration = 0.0;        ///< s of data played
 };
@@ -91,14 +96,9 @@ std::vector<RobotMetrics> evaluateRun(const RunSummary& run);
 /// files): a table per robot (ATE with and without collaboration, loops,
 /// bytes) and plots of the trajectories over ground truth seen from above
 /// with the inter-robot loops drawn between them (accepted and rejected
-/// apart), ATE per robot with and without collaboration, and traffic over
-/// time per message kind.
+/// apart), the merged map from above coloured by robot with the accepted
+/// loops on it (an embedded PNG), ATE per robot with and without
+/// collaboration, and traffic over time per message kind.
 std::string reportHtml(const RunSummary& run, const std::vector<RobotMetrics>& metrics);
-
-/// Robot `i`'s colour (red, green, blue) in the report, so that other outputs
-/// (the merged map) draw each robot as the report does. Ten colours, then
-/// again from the first; none green, red or grey (the report's accepted and
-/// rejected loops and its ground truth).
-std::array<std::uint8_t, 3> robotColour(std::size_t i);
 
 }  // namespace dcl::eval

@@ -50,6 +50,10 @@ class Image {
   std::vector<std::uint8_t> data_;
 };
 
+/// `image` as the bytes of an 8-bit RGB PNG (for pages that embed it).
+/// Throws core::Error for an empty image or a failed encoding.
+std::vector<char> encodePng(const Image& image);
+
 /// Writes `image` as an 8-bit RGB PNG, atomically (temporary file, then rename).
 /// Throws core::FileError naming the file for an empty image or a failed write.
 void writePng(const std::string& path, const Image& image);

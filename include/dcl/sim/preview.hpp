@@ -26,7 +26,7 @@ struct PreviewOptions {
 /// The colour of a surface class in the world view.
 io::Rgb surfaceColour(Surface surface);
 
-/// A distinct colour for route `index` (robot a, b, c, ...).
+/// Route `index`'s colour: its robot's (core::robotColour), as in the report and the map.
 io::Rgb routeColour(std::size_t index);
 
 /// The world from above, north up: every triangle projected top-down, the
