@@ -1,5 +1,5 @@
 # The two commands of the README, and a few conveniences.
-#   make demo   install what is missing, build, run the main job
+#   make demo   install what the program needs, build only it, run the main job
 #   make test   install what is missing, build, run the whole test suite
 #               (ctest, then every decoder's libFuzzer target for 20 s)
 
@@ -12,13 +12,20 @@ CMAKE_FLAGS ?=
 setup:
 	@scripts/setup
 
-$(BUILD_DIR)/build.ninja:
-	cmake -S . -B $(BUILD_DIR) -G Ninja -DCMAKE_BUILD_TYPE=Release $(CMAKE_FLAGS)
-
-build: setup $(BUILD_DIR)/build.ninja
+# Configured with the tests every time: a build first configured by `make
+# demo` (tests off, and without the optional ROS 1 side, whose packages the
+# demo does not install) gets them now.
+build: setup
+	cmake -S . -B $(BUILD_DIR) -G Ninja -DCMAKE_BUILD_TYPE=Release -DDCL_BUILD_TESTS=ON $(CMAKE_FLAGS)
 	cmake --build $(BUILD_DIR) -j $(JOBS)
 
-demo: build
+# Only the program: the packages to build it, and its own targets. A build
+# folder configured before (by `make test`) keeps its configuration.
+demo:
+	@scripts/setup --demo
+	@test -f $(BUILD_DIR)/build.ninja || cmake -S . -B $(BUILD_DIR) -G Ninja \
+	  -DCMAKE_BUILD_TYPE=Release -DDCL_BUILD_TESTS=OFF $(CMAKE_FLAGS)
+	cmake --build $(BUILD_DIR) -j $(JOBS) --target dcl-slam
 	$(BUILD_DIR)/apps/dcl-slam demo
 
 test: build
