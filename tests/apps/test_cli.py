@@ -507,6 +507,12 @@ class Demo(unittest.TestCase):
             self.check_bound(tmp, metrics)
             self.check_noise(tmp)
         self.assertIn("ATE collab", out)
+        # The cut per robot, in percent, as the metrics give it.
+        for r in metrics["robots"]:
+            row = next(line.split() for line in out.splitlines()
+                       if line.split()[:1] == [r["name"]])
+            cut = 100 * (1 - r["ate_rmse"] / r["ate_rmse_odometry_only"])
+            self.assertEqual(row[3:5], [f"{cut:.0f}", "%"], row)
         self.assertIn("map.ply", out)
         self.assertLess(len(out.splitlines()), 12)
 
