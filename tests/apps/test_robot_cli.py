@@ -6,6 +6,7 @@ each swarm under its own name, so parallel test runs stay apart."""
 import json
 import math
 import os
+import shutil
 import signal
 import sys
 import subprocess
@@ -292,6 +293,29 @@ class Ros2Robot(unittest.TestCase):
                   f"{r['counters']['scans_dropped']:g} dropped", file=sys.stderr)
             self.assertLess(r["ate_rmse"], max(1.1 * reference[name]["ate_rmse"],
                                                reference[name]["ate_rmse"] + 0.01), name)
+
+    def test_a_failing_player_stops_the_live_swarm_and_is_named(self):
+        broken = os.path.join(self.tmp.name, "broken")
+        shutil.copytree(self.dataset, broken)
+        path = os.path.join(broken, "dataset.yaml")
+        with open(path) as f:
+            text = f.read()
+        # Robot b's scans from a folder that does not exist: only its player finds out.
+        head, sep, tail = text.partition("  - name: b\n")
+        tail = tail.replace("type: sim", "type: kitti\n      folder: missing\n"
+                            "      times: missing.txt", 1)
+        with open(path, "w") as f:
+            f.write(head + sep + tail)
+        out = os.path.join(self.tmp.name, "broken-out")
+        code, _, err = run("swarm", "--ros2", "--dataset", broken, "--out", out,
+                           "--ros-domain", "181", "--domain", "182", check=False, timeout=120)
+        self.assertEqual(code, 1)
+        lines = err.strip().splitlines()
+        self.assertIn("the player of robot 'b'", lines[-1])
+        self.assertIn("exit code 1", lines[-1])
+        self.assertIn("missing", lines[-1])
+        self.assertIn(os.path.join("b", "play.log"), lines[-1])
+        self.assertFalse(os.path.exists(os.path.join(out, "metrics.json")))
 
     def test_a_live_robot_tracks_the_scans_it_is_sent(self):
         out = os.path.join(self.tmp.name, "out")
