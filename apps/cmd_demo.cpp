@@ -32,6 +32,7 @@ struct DemoOptions {
   std::string out = "out/demo";  ///< where results go
   int threads = 0;               ///< robots processed at once (0: every core)
   bool force = false;            ///< replace --out even when it holds files of another program
+  VizOptions viz;                ///< served live to Foxglove
 };
 
 /// The preset's dataset (ground truth only: scans are regenerated) and its
@@ -82,8 +83,8 @@ void printTable(const Json& m) {
 void runDemo(const DemoOptions& o, const AppConfig& config) {
   OutputFolder out(o.out, o.force);
   const std::string dataset = simulate(out.path(), out.out());
-  const Json metrics =
-      runSwarmDataset(dataset, out.path(), 0, o.threads, swarm::SwarmConfig{}.settle, config);
+  const Json metrics = runSwarmDataset(dataset, out.path(), 0, o.threads,
+                                       swarm::SwarmConfig{}.settle, config, {}, o.viz);
   out.commit();
   printTable(metrics);
   fmt::print("outputs in {}: report.html, {}metrics.json, one folder per robot\n", o.out,
@@ -102,6 +103,7 @@ void addDemoCommand(CLI::App& app, const AppConfig& config) {
   cmd->add_option("--threads", o->threads, "robots processed at once (0: every core)")
       ->capture_default_str();
   addForceFlag(*cmd, o->force);
+  addVizOptions(*cmd, o->viz);
   cmd->callback([o, &config] {
     if (o->threads < 0) throw core::Error("--threads must be at least 0");
     runDemo(*o, config);

@@ -34,6 +34,7 @@
 
 #include "commands.hpp"
 #include "front_end.hpp"
+#include "live_view.hpp"
 #include "option_checks.hpp"
 #include "output_folder.hpp"
 #include "robot_outputs.hpp"
@@ -285,11 +286,13 @@ void writeOutputs(const std::string& out, const eval::RunSummary& s,
 
 /// The run, with a line per robot redrawn on a terminal (nothing otherwise).
 swarm::SwarmResult runWithProgress(std::vector<swarm::SwarmMember> members,
-                                   const swarm::SwarmConfig& config, const std::string& label) {
+                                   const swarm::SwarmConfig& config, const std::string& label,
+                                   LiveView* view) {
   core::ProgressBoard board;
   swarm::SwarmStatus last;
   swarm::SwarmResult result =
       swarm::runSwarm(std::move(members), config, [&](const swarm::SwarmStatus& status) {
+        if (view != nullptr) view->update(status);
         if (!board.enabled()) return;
         last = status;
         if (board.due()) board.draw(swarm::progressLines(label, status, board.elapsed()));
@@ -337,7 +340,7 @@ void printRunTable(const Json& m, const std::string& out) {
 
 Json runSwarmDataset(const std::string& dataset, const std::string& out, std::size_t max_frames,
                      int threads, double settle, const AppConfig& config,
-                     const std::vector<std::string>& leave) {
+                     const std::vector<std::string>& leave, const VizOptions& viz) {
   const RunOptions o{dataset, out, max_frames, threads, settle, leave, false, false};
   const io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const std::map<std::string, double> leave_times = parseLeaves(o.leave, spec);
@@ -352,8 +355,14 @@ Json runSwarmDataset(const std::string& dataset, const std::string& out, std::si
   sc.threads = o.threads;
   sc.settle = o.settle;
   sc.map = config.map;
-  const swarm::SwarmResult result =
-      runWithProgress(std::move(members), sc, "run " + (spec.name.empty() ? o.dataset : spec.name));
+  std::unique_ptr<LiveView> view;
+  if (viz.port) {
+    std::vector<std::string> names;
+    for (const swarm::SwarmMember& m : members) names.push_back(m.name);
+    view = std::make_unique<LiveView>(*viz.port, names, viz.wait);
+  }
+  const swarm::SwarmResult result = runWithProgress(
+      std::move(members), sc, "run " + (spec.name.empty() ? o.dataset : spec.name), view.get());
 
   eval::RunSummary summary = summaryOf(spec, result, truths, config.radio.meter_interval);
   const std::vector<eval::RobotMetrics> metrics = eval::evaluateRun(summary);
@@ -367,6 +376,15 @@ Json runSwarmDataset(const std::string& dataset, const std::string& out, std::si
   }
   writeOutputs(o.out, summary, result, maps, m, metrics);
   return m;
+}
+
+void addVizOptions(CLI::App& cmd, VizOptions& viz) {
+  cmd.add_option("--viz", viz.port,
+                 "serve the run live on this port of 127.0.0.1 to Foxglove or Lichtblick (Foxglove "
+                 "WebSocket): each robot's path and counters");
+  cmd.add_option("--viz-wait", viz.wait, "s to wait for a first viewer before the run starts")
+      ->check(CLI::Range(0.0, 3600.0))
+      ->capture_default_str();
 }
 
 void addRunCommand(CLI::App& app, const AppConfig& config) {
@@ -394,12 +412,14 @@ void addRunCommand(CLI::App& app, const AppConfig& config) {
       ->type_name("NAME@SECONDS");
   cmd->add_flag("--json", o->json, "print metrics.json instead of the table");
   addForceFlag(*cmd, o->force);
-  cmd->callback([o, &config] {
+  auto viz = std::make_shared<VizOptions>();
+  addVizOptions(*cmd, *viz);
+  cmd->callback([o, viz, &config] {
     if (o->threads < 0) throw core::Error("--threads must be at least 0");
     OutputFolder out(o->out, o->force);
     out.requireOutside(o->dataset, "the dataset");
     const Json m = runSwarmDataset(o->dataset, out.path(), o->max_frames, o->threads, o->settle,
-                                   config, o->leave);
+                                   config, o->leave, *viz);
     out.commit();
     if (o->json) return fmt::print("{}\n", m.dump(2));
     printRunTable(m, out.out());

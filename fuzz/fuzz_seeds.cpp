@@ -412,6 +412,15 @@ int main(int argc, char** argv) {
   writeRos2Seeds(dir / "ros2", scan);
   writeRos1Seeds(dir / "ros1", scan);
   writeMcapSeeds(dir / "mcap", few);
+  // What Foxglove Studio sends a server it watches.
+  write(
+      dir / "viz", "subscribe.json",
+      std::string(
+          R"({"op":"subscribe","subscriptions":[{"id":0,"channelId":1},{"id":1,"channelId":4}]})"));
+  write(dir / "viz", "unsubscribe.json",
+        std::string(R"({"op":"unsubscribe","subscriptionIds":[0,1]})"));
+  write(dir / "viz", "other.json",
+        std::string(R"({"op":"getParameters","parameterNames":[],"id":"x"})"));
   std::printf("seeds written to %s\n", dir.c_str());
   return 0;
 }

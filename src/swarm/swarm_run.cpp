@@ -211,8 +211,10 @@ SwarmResult runSwarm(std::vector<SwarmMember> members, const SwarmConfig& config
   end += config.drain;
   SwarmStatus status;
   status.end = end;
-  for (const Member& m : robots)
+  for (const Member& m : robots) {
     status.robots.push_back({.name = m.spec.name, .total_frames = m.frames});
+    status.nodes.push_back(m.node.get());
+  }
 
   tbb::task_arena arena(config.threads > 0 ? config.threads : tbb::task_arena::automatic);
   const auto optimising = [&](double t) {

@@ -1860,3 +1860,65 @@ class Run(unittest.TestCase):
             with open(os.path.join(self.outs[0], name), "rb") as f1, \
                     open(os.path.join(self.outs[1], name), "rb") as f2:
                 self.assertEqual(f1.read(), f2.read(), name)
+
+
+class LiveView(unittest.TestCase):
+    """run --viz: the run served to Foxglove over the Foxglove WebSocket protocol,
+    checked with Foxglove's own client (@foxglove/ws-protocol on Node.js, which
+    scripts/setup --npm-prefix installs into the build)."""
+
+    MODULES = os.environ.get("DCL_NODE_MODULES", "")
+
+    def client(self, port, topic, count, junk=False):
+        env = dict(os.environ, JUNK="1" if junk else "0")
+        return subprocess.Popen(
+            ["node", os.path.join(os.path.dirname(__file__), "foxglove_client.js"),
+             self.MODULES, str(port), topic, str(count)],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+
+    def test_foxglove_sees_every_robots_path_grow(self):
+        self.assertTrue(os.path.isdir(os.path.join(self.MODULES, "@foxglove", "ws-protocol")),
+                        "scripts/setup --npm-prefix BUILD/npm installs @foxglove/ws-protocol")
+        with tempfile.TemporaryDirectory() as tmp:
+            dataset = os.path.join(tmp, "ds")
+            run("simulate", "--preset", "demo", "--robots", "2", "--max-scans", "300",
+                "--out", dataset)
+            # Port 0: any free one; the run says which before it waits for a viewer.
+            proc = subprocess.Popen(
+                [DCL_SLAM, "run", "--dataset", dataset, "--out", os.path.join(tmp, "out"),
+                 "--viz", "0", "--viz-wait", "60", "--json"],
+                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            self.addCleanup(lambda: proc.poll() is None and proc.kill())
+            line = proc.stderr.readline()
+            self.assertIn("live view: ws://127.0.0.1:", line)
+            port = int(line.split("ws://127.0.0.1:")[1].split()[0])
+            # One viewer that first sends junk, one that watches robot b's path.
+            viewers = {"a": self.client(port, "/a/path", 6, junk=True),
+                       "b": self.client(port, "/b/path", 6)}
+            seen = {}
+            for name, viewer in viewers.items():
+                out, err = viewer.communicate(timeout=180)
+                self.assertEqual(viewer.returncode, 0, err + out)
+                seen[name] = json.loads(out)
+            rest, err = proc.communicate(timeout=180)
+            self.assertEqual(proc.returncode, 0, err)
+            metrics = json.loads(rest)
+        for name, got in seen.items():
+            self.assertEqual(got["serverInfo"], "dcl-slam")
+            self.assertEqual(got["channel"], {"topic": f"/{name}/path", "encoding": "json",
+                                              "schemaName": "foxglove.PosesInFrame",
+                                              "schemaIsJson": True})
+            messages = got["messages"]
+            self.assertGreaterEqual(len(messages), 6, name)
+            stamps = [m["stamp"] for m in messages]
+            self.assertEqual(stamps, sorted(stamps), name)
+            self.assertLess(stamps[0], stamps[-1], name)
+            self.assertTrue(all(m["frame_id"] == "map" for m in messages))
+            # The path advances: more keyframes, and the newest one elsewhere.
+            poses = [m["poses"] for m in messages]
+            self.assertEqual(poses, sorted(poses), name)
+            self.assertLess(poses[0], poses[-1], name)
+            first, last = messages[0]["last"], messages[-1]["last"]
+            self.assertGreater(math.dist((first["x"], first["y"]), (last["x"], last["y"])), 1.0)
+        # The viewer's junk did not disturb the run.
+        self.assertEqual([r["frames"] for r in metrics["robots"]], [300, 300])

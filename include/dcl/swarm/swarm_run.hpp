@@ -99,6 +99,9 @@ struct SwarmStatus {
   double time = 0.0;                  ///< s of simulated time done
   double end = 0.0;                   ///< s of simulated time the run takes
   std::vector<RobotProgress> robots;  ///< in member order
+  /// The robots themselves, in member order, to read (their estimates, for a
+  /// live view) during the call only.
+  std::vector<const robot::RobotNode*> nodes;
 };
 
 /// Called after each step, between the robots' parallel steps (nothing runs

@@ -1,0 +1,41 @@
+#pragma once
+
+// `--viz PORT` of `run` and `demo`: the swarm as it runs, served to
+// Foxglove (or Lichtblick) over the Foxglove WebSocket protocol. Per robot
+// its path (foxglove.PosesInFrame, keyframes at their current estimates in
+// the robot's frame) and its counters; a few times a wall second.
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include <dcl/swarm/swarm_run.hpp>
+#include <dcl/viz/foxglove.hpp>
+
+namespace dcl::apps {
+
+class LiveView {
+ public:
+  /// Serves on `port` of 127.0.0.1 the channels of `robots` (their names);
+  /// waits up to `wait` s for a first client. Throws core::Error when the
+  /// port cannot be had.
+  LiveView(std::uint16_t port, const std::vector<std::string>& robots, double wait);
+
+  /// Publishes where the run stands, at most every kPeriod of wall time
+  /// unless `now` (the run's end).
+  void update(const swarm::SwarmStatus& status, bool now = false);
+
+  [[nodiscard]] std::uint16_t port() const { return server_.port(); }
+
+  /// The channels of robots named `robots`: their paths, then their counters.
+  static std::vector<viz::Channel> channels(const std::vector<std::string>& robots);
+
+ private:
+  std::size_t robots_;
+  viz::Server server_;
+  std::chrono::steady_clock::time_point last_{};
+};
+
+}  // namespace dcl::apps
