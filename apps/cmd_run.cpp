@@ -381,7 +381,7 @@ Json runSwarmDataset(const std::string& dataset, const std::string& out, std::si
 void addVizOptions(CLI::App& cmd, VizOptions& viz) {
   cmd.add_option("--viz", viz.port,
                  "serve the run live on this port of 127.0.0.1 to Foxglove or Lichtblick (Foxglove "
-                 "WebSocket): each robot's path and counters");
+                 "WebSocket): each robot's path, newest scan, loops and counters");
   cmd.add_option("--viz-wait", viz.wait, "s to wait for a first viewer before the run starts")
       ->check(CLI::Range(0.0, 3600.0))
       ->capture_default_str();

@@ -1,10 +1,13 @@
 #include "live_view.hpp"
 
 #include <Eigen/Geometry>
+#include <cstring>
 #include <thread>
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
+
+#include <dcl/core/base64.hpp>
 
 namespace dcl::apps {
 namespace {
@@ -12,6 +15,7 @@ namespace {
 using Json = nlohmann::json;
 
 constexpr auto kPeriod = std::chrono::milliseconds(250);
+constexpr auto kLoopsPeriod = std::chrono::seconds(1);  ///< the loops need the graph copied
 
 // The JSON Schemas of what the channels carry (Foxglove draws
 // foxglove.PosesInFrame by its name; the schema describes the fields).
@@ -21,9 +25,19 @@ constexpr const char* kPosesSchema = R"({"type":"object","properties":{
 "poses":{"type":"array","items":{"type":"object","properties":{
 "position":{"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"}}},
 "orientation":{"type":"object","properties":{"x":{"type":"number"},"y":{"type":"number"},"z":{"type":"number"},"w":{"type":"number"}}}}}}}})";
+// foxglove.PointCloud and foxglove.SceneUpdate: drawn by their names, their
+// fields as Foxglove's schemas define them.
+constexpr const char* kObjectSchema = R"({"type":"object"})";
 constexpr const char* kCountersSchema = R"({"type":"object","properties":{
 "time":{"type":"number"},"frames":{"type":"integer"},"keyframes":{"type":"integer"},
 "inter_loops":{"type":"integer"},"bytes_sent":{"type":"integer"}}})";
+
+Json poseJson(const Eigen::Isometry3d& T) {
+  const Eigen::Quaterniond q(T.linear());
+  return {{"position",
+           {{"x", T.translation().x()}, {"y", T.translation().y()}, {"z", T.translation().z()}}},
+          {"orientation", {{"x", q.x()}, {"y", q.y()}, {"z", q.z()}, {"w", q.w()}}}};
+}
 
 Json stampOf(double seconds) {
   const auto ns = static_cast<std::int64_t>(std::max(0.0, seconds) * 1e9);
@@ -34,10 +48,12 @@ Json stampOf(double seconds) {
 
 std::vector<viz::Channel> LiveView::channels(const std::vector<std::string>& robots) {
   std::vector<viz::Channel> out;
-  for (const std::string& r : robots)
+  for (const std::string& r : robots) {
     out.push_back({"/" + r + "/path", "foxglove.PosesInFrame", kPosesSchema});
-  for (const std::string& r : robots)
+    out.push_back({"/" + r + "/scan", "foxglove.PointCloud", kObjectSchema});
+    out.push_back({"/" + r + "/loops", "foxglove.SceneUpdate", kObjectSchema});
     out.push_back({"/" + r + "/counters", "dcl_slam.Counters", kCountersSchema});
+  }
   return out;
 }
 
@@ -57,24 +73,76 @@ LiveView::LiveView(std::uint16_t port, const std::vector<std::string>& robots, d
 void LiveView::update(const swarm::SwarmStatus& status, bool now) {
   const auto wall = std::chrono::steady_clock::now();
   if (!now && wall - last_ < kPeriod) return;
+  const bool loops_due = now || wall - last_loops_ >= kLoopsPeriod;
   last_ = wall;
+  if (loops_due) last_loops_ = wall;
   const auto stamp_ns = static_cast<std::uint64_t>(std::max(0.0, status.time) * 1e9);
+  const Json stamp = stampOf(status.time);
+  scans_published_.resize(robots_, 0);
   for (std::size_t r = 0; r < robots_ && r < status.nodes.size(); ++r) {
     const robot::RobotNode& node = *status.nodes[r];
+    const auto& keyframes = node.keyframes();
     Json poses = Json::array();
-    for (const core::Keyframe& k : node.keyframes()) {
-      const Eigen::Isometry3d T = node.estimate(k.id);
-      const Eigen::Quaterniond q(T.linear());
-      poses.push_back(
-          {{"position",
-            {{"x", T.translation().x()}, {"y", T.translation().y()}, {"z", T.translation().z()}}},
-           {"orientation", {{"x", q.x()}, {"y", q.y()}, {"z", q.z()}, {"w", q.w()}}}});
+    for (const core::Keyframe& k : keyframes) poses.push_back(poseJson(node.estimate(k.id)));
+    server_.publish(4 * r, stamp_ns,
+                    Json{{"timestamp", stamp}, {"frame_id", "map"}, {"poses", poses}}.dump());
+    // The newest keyframe's scan where the robot is now thought to have taken it.
+    if (!keyframes.empty() && keyframes.size() != scans_published_[r]) {
+      scans_published_[r] = keyframes.size();
+      const core::Keyframe& k = keyframes.back();
+      std::vector<std::uint8_t> data(12 * k.cloud.points.size());
+      std::memcpy(data.data(), k.cloud.points.data(), data.size());
+      static_assert(sizeof(Eigen::Vector3f) == 12, "packed float xyz");
+      Json fields = Json::array();
+      for (int axis = 0; axis < 3; ++axis)
+        fields.push_back({{"name", std::string(1, static_cast<char>('x' + axis))},
+                          {"offset", 4 * axis},
+                          {"type", 7}});  // FLOAT32
+      server_.publish(4 * r + 1, stamp_ns,
+                      Json{{"timestamp", stamp},
+                           {"frame_id", "map"},
+                           {"pose", poseJson(node.estimate(k.id))},
+                           {"point_stride", 12},
+                           {"fields", fields},
+                           {"data", core::base64(data)}}
+                          .dump());
     }
-    server_.publish(
-        r, stamp_ns,
-        Json{{"timestamp", stampOf(status.time)}, {"frame_id", "map"}, {"poses", poses}}.dump());
+    // The accepted inter-robot loops, a line each between its two keyframes.
+    if (loops_due) {
+      const backend::PoseGraph graph = node.graph();
+      Json points = Json::array();
+      for (const robot::InterLoop& loop : node.interLoops()) {
+        if (!loop.accepted || !graph.hasNode(loop.factor.from) || !graph.hasNode(loop.factor.to))
+          continue;
+        for (const auto& key : {loop.factor.from, loop.factor.to}) {
+          const Eigen::Vector3d p = graph.estimate(key).translation();
+          points.push_back({{"x", p.x()}, {"y", p.y()}, {"z", p.z()}});
+        }
+      }
+      Json line = {{"type", 2},  // LINE_LIST
+                   {"pose", poseJson(Eigen::Isometry3d::Identity())},
+                   {"thickness", 0.3},
+                   {"scale_invariant", false},
+                   {"points", points},
+                   {"color", {{"r", 0.17}, {"g", 0.63}, {"b", 0.17}, {"a", 1.0}}},
+                   {"colors", Json::array()},
+                   {"indices", Json::array()}};
+      Json entity = {{"timestamp", stamp},
+                     {"frame_id", "map"},
+                     {"id", status.robots[r].name + "/loops"},
+                     {"lifetime", {{"sec", 0}, {"nsec", 0}}},
+                     {"frame_locked", false},
+                     {"metadata", Json::array()},
+                     {"lines", Json::array({line})}};
+      for (const char* none :
+           {"arrows", "cubes", "spheres", "cylinders", "triangles", "texts", "models"})
+        entity[none] = Json::array();
+      server_.publish(
+          4 * r + 2, stamp_ns,
+          Json{{"deletions", Json::array()}, {"entities", Json::array({entity})}}.dump());
+    }
     const swarm::RobotProgress& p = status.robots[r];
-    server_.publish(robots_ + r, stamp_ns,
+    server_.publish(4 * r + 3, stamp_ns,
                     Json{{"time", status.time},
                          {"frames", p.frames},
                          {"keyframes", p.keyframes},

@@ -3,7 +3,9 @@
 // `--viz PORT` of `run` and `demo`: the swarm as it runs, served to
 // Foxglove (or Lichtblick) over the Foxglove WebSocket protocol. Per robot
 // its path (foxglove.PosesInFrame, keyframes at their current estimates in
-// the robot's frame) and its counters; a few times a wall second.
+// the robot's frame), its newest keyframe's scan there (foxglove.PointCloud),
+// its accepted inter-robot loops (foxglove.SceneUpdate, lines) and its
+// counters; a few times a wall second.
 
 #include <chrono>
 #include <cstdint>
@@ -29,13 +31,16 @@ class LiveView {
 
   [[nodiscard]] std::uint16_t port() const { return server_.port(); }
 
-  /// The channels of robots named `robots`: their paths, then their counters.
+  /// The channels of robots named `robots`: per robot its path, scan, loops
+  /// and counters (channel 4 r + 0..3).
   static std::vector<viz::Channel> channels(const std::vector<std::string>& robots);
 
  private:
   std::size_t robots_;
   viz::Server server_;
   std::chrono::steady_clock::time_point last_{};
+  std::chrono::steady_clock::time_point last_loops_{};
+  std::vector<std::size_t> scans_published_;  ///< per robot, keyframes when its scan went out
 };
 
 }  // namespace dcl::apps

@@ -15,6 +15,7 @@
 
 #include <fmt/format.h>
 
+#include <dcl/core/base64.hpp>
 #include <dcl/core/colour.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/eval/ate.hpp>
@@ -488,23 +489,6 @@ std::string trajectoryPlot(const RunSummary& run, const RunPairs& pairs) {
 // ------------------------------------------------------------------------------------------------
 // The merged map from above
 
-// `bytes` in base64 (RFC 4648), for a data: URL.
-std::string base64(const std::vector<char>& bytes) {
-  static constexpr std::string_view kDigits =
-      "ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-  std::string out;
-  out.reserve((bytes.size() + 2) / 3 * 4);
-  for (std::size_t i = 0; i < bytes.size(); i += 3) {
-    const std::size_t n = std::min<std::size_t>(3, bytes.size() - i);
-    std::uint32_t v = 0;
-    for (std::size_t k = 0; k < 3; ++k) {
-      v = (v << 8) | (k < n ? static_cast<std::uint8_t>(bytes[i + k]) : 0U);
-    }
-    for (std::size_t k = 0; k < 4; ++k) out += k <= n ? kDigits[(v >> (18 - 6 * k)) & 0x3F] : '=';
-  }
-  return out;
-}
-
 // The map's plot area: the robots' estimates and the accepted loops, with a
 // margin of 15 % (at least 20 m) for what they saw around them; one scale for x and y.
 Axes mapAxes(const RunSummary& run) {
@@ -548,6 +532,7 @@ std::vector<char> mapRaster(const RunSummary& run, const Axes& a) {
 
 std::string mapPlot(const RunSummary& run) {
   const Axes a = mapAxes(run);
+  const std::vector<char> png = mapRaster(run, a);
   std::string out =
       "<p>Every robot's keyframe clouds at the full system's estimates, in the robots' common "
       "frame (map.ply), coloured by robot; the accepted inter-robot loops in green.</p>\n";
@@ -557,7 +542,8 @@ std::string mapPlot(const RunSummary& run) {
       "<image class=\"map\" x=\"{}\" y=\"{}\" width=\"{}\" height=\"{}\" "
       "preserveAspectRatio=\"none\" href=\"data:image/png;base64,{}\"/>\n",
       fixed(a.left, 1), fixed(a.top, 1), fixed(a.width, 1), fixed(a.height, 1),
-      base64(mapRaster(run, a)));
+      core::base64(std::span<const std::uint8_t>(reinterpret_cast<const std::uint8_t*>(png.data()),
+                                                 png.size())));
   for (const RunLoop& loop : run.loops) {
     if (!loop.accepted) continue;
     const Line segment{Point(loop.p_a.x(), loop.p_a.y()), Point(loop.p_b.x(), loop.p_b.y())};

@@ -45,9 +45,23 @@ client.on("message", (event) => {
   const text = new TextDecoder().decode(
     new Uint8Array(event.data.buffer, event.data.byteOffset, event.data.byteLength));
   const message = JSON.parse(text);
-  out.messages.push({ stamp: Number(event.timestamp), poses: message.poses ? message.poses.length : null,
-                      frame_id: message.frame_id,
-                      last: message.poses && message.poses.length ? message.poses[message.poses.length - 1].position : null });
+  const summary = { stamp: Number(event.timestamp), frame_id: message.frame_id };
+  if (message.poses) {  // foxglove.PosesInFrame
+    summary.poses = message.poses.length;
+    summary.last = message.poses.length ? message.poses[message.poses.length - 1].position : null;
+  }
+  if (message.data !== undefined) {  // foxglove.PointCloud: whole points in its data
+    const bytes = Buffer.from(message.data, "base64").length;
+    summary.points = bytes / message.point_stride;
+    summary.fields = message.fields.map((f) => `${f.name}:${f.offset}:${f.type}`).join(",");
+  }
+  if (message.entities) {  // foxglove.SceneUpdate
+    const lines = message.entities[0].lines[0];
+    summary.frame_id = message.entities[0].frame_id;
+    summary.line_type = lines.type;
+    summary.line_points = lines.points.length;
+  }
+  out.messages.push(summary);
   if (out.messages.length >= Number(count)) finish(0);
 });
 client.on("error", (e) => { out.error = String(e && e.message ? e.message : e); });

@@ -1892,17 +1892,32 @@ class LiveView(unittest.TestCase):
             line = proc.stderr.readline()
             self.assertIn("live view: ws://127.0.0.1:", line)
             port = int(line.split("ws://127.0.0.1:")[1].split()[0])
-            # One viewer that first sends junk, one that watches robot b's path.
+            # One viewer that first sends junk, one per other channel watched.
             viewers = {"a": self.client(port, "/a/path", 6, junk=True),
-                       "b": self.client(port, "/b/path", 6)}
-            seen = {}
+                       "b": self.client(port, "/b/path", 6),
+                       "scan": self.client(port, "/a/scan", 3),
+                       "loops": self.client(port, "/b/loops", 2)}
+            got_all = {}
             for name, viewer in viewers.items():
                 out, err = viewer.communicate(timeout=180)
                 self.assertEqual(viewer.returncode, 0, err + out)
-                seen[name] = json.loads(out)
+                got_all[name] = json.loads(out)
             rest, err = proc.communicate(timeout=180)
             self.assertEqual(proc.returncode, 0, err)
             metrics = json.loads(rest)
+        scan, loops = got_all.pop("scan"), got_all.pop("loops")
+        self.assertEqual(scan["channel"]["schemaName"], "foxglove.PointCloud")
+        for m in scan["messages"]:
+            # Packed float x, y, z; a whole number of points, as many as a keyframe keeps.
+            self.assertEqual(m["fields"], "x:0:7,y:4:7,z:8:7")
+            self.assertEqual(m["points"], int(m["points"]))
+            self.assertGreater(m["points"], 1000)
+            self.assertEqual(m["frame_id"], "map")
+        self.assertEqual(loops["channel"]["schemaName"], "foxglove.SceneUpdate")
+        for m in loops["messages"]:
+            self.assertEqual((m["frame_id"], m["line_type"]), ("map", 2))  # a LINE_LIST
+            self.assertEqual(m["line_points"] % 2, 0)  # two ends a loop
+        seen = got_all
         for name, got in seen.items():
             self.assertEqual(got["serverInfo"], "dcl-slam")
             self.assertEqual(got["channel"], {"topic": f"/{name}/path", "encoding": "json",
