@@ -42,10 +42,12 @@
 
 #include "commands.hpp"
 #include "front_end.hpp"
+#include "live_view.hpp"
 #include "option_checks.hpp"
 #include "output_folder.hpp"
 #include "process.hpp"
 #include "robot_outputs.hpp"
+#include "run_swarm.hpp"
 
 namespace dcl::apps {
 namespace {
@@ -84,6 +86,7 @@ struct RobotOptions {
   std::optional<std::uint32_t> ros_domain;  ///< ROS 2; default: ros.domain
   std::optional<std::string> ros_master;    ///< ROS 1; default: ros.master_uri, ROS_MASTER_URI
   std::vector<std::string> frame_ids;       ///< map, odom, base, sensor; default: the ros section's
+  VizOptions viz;                           ///< served live to Foxglove
 
   [[nodiscard]] bool live() const { return ros2 || ros1; }
 };
@@ -102,6 +105,25 @@ struct SwarmClock {
     return std::chrono::milliseconds(static_cast<std::int64_t>(ms));
   }
 };
+
+/// The live view (--viz), if any, with this robot as it stands.
+void showLive(LiveView* view, const robot::RobotNode& node, const std::string& name, double time,
+              std::size_t frames, std::size_t total_frames, std::size_t bytes_sent) {
+  if (view == nullptr) return;
+  swarm::SwarmStatus status;
+  status.time = time;
+  swarm::RobotProgress p;
+  p.name = name;
+  p.frames = frames;
+  p.total_frames = total_frames;
+  p.keyframes = node.keyframes().size();
+  const auto loops = node.counters().find("inter_loops_accepted");
+  p.inter_loops = loops == node.counters().end() ? 0 : static_cast<std::size_t>(loops->second);
+  p.bytes_sent = bytes_sent;
+  status.robots = {p};
+  status.nodes = {&node};
+  view->update(status);
+}
 
 // ---- the metered transport ------------------------------------------------------------
 
@@ -247,6 +269,7 @@ struct RobotPlayer {
   double max_lag = 0.0;                                   ///< s of swarm time
   double joined_at = 0.0;                                 ///< s since the Unix epoch
   double now = -std::numeric_limits<double>::infinity();  ///< the swarm clock at the last look
+  LiveView* view = nullptr;                               ///< --viz
 
   RobotPlayer(const RobotOptions& options, io::DatasetSpec dataset, std::size_t robot,
               const robot::RobotConfig& config, const odometry::ExternalOdometryConfig& external)
@@ -276,7 +299,10 @@ struct RobotPlayer {
     return now;
   }
 
-  void tick() { node.tick(look()); }
+  void tick() {
+    node.tick(look());
+    showLive(view, node, o.robot, now, next, frames, metered.sent());
+  }
 
   /// Waits for the epoch without ticking: the swarm clock starts at 0.
   void waitForEpoch() {
@@ -420,6 +446,7 @@ struct LiveRobot {
   std::size_t published_keyframes = 0;
   double next_publish = 0.0;
   double next_whole_map = 0.0;
+  LiveView* view = nullptr;  ///< --viz
 
   LiveRobot(const RobotOptions& options, const AppConfig& app, std::uint8_t robot)
       : o(options),
@@ -675,6 +702,7 @@ struct LiveRobot {
       ros_node.spin(tick);
       takeWaiting();
       node.tick(look());
+      showLive(view, node, o.robot, now, frames, received, metered.sent());
       publishKeyframe();
       publishMaps();
     }
@@ -740,7 +768,11 @@ void runLiveRobot(const RobotOptions& o, const AppConfig& config) {
   }
   const StopSignals signals;
   OutputFolder output(o.out + "/" + o.robot, o.force, {"robot.log", "play.log"});
+  const std::unique_ptr<LiveView> view =
+      o.viz.port ? std::make_unique<LiveView>(*o.viz.port, std::vector{o.robot}, o.viz.wait)
+                 : nullptr;
   LiveRobot<Middleware> live(o, config, static_cast<std::uint8_t>(*o.id));
+  live.view = view.get();
   live.run();
   const RobotOutputs outputs = live.outputs();
   writeRobotOutputs(output.path(), outputs);
@@ -801,7 +833,12 @@ void runRobot(const RobotOptions& o, const AppConfig& config) {
   // and put in place whole; the swarm's log of this process stays in it.
   OutputFolder output(o.out + "/" + o.robot, o.force, {"robot.log", "play.log"});
   const std::string& folder = output.out();
+  // The viewer waited for before the robot's clock starts.
+  const std::unique_ptr<LiveView> view =
+      o.viz.port ? std::make_unique<LiveView>(*o.viz.port, std::vector{o.robot}, o.viz.wait)
+                 : nullptr;
   RobotPlayer player(o, std::move(spec), index, robotConfig(config), config.external);
+  player.view = view.get();
   const bool finished = player.run();
   const RobotOutputs outputs = player.outputs(!finished);
   writeRobotOutputs(output.path(), outputs);
@@ -880,6 +917,7 @@ void addRobotCommand(CLI::App& app, const AppConfig& config) {
                   "the ros section's map_frame, odom_frame, base_frame, sensor_frame)")
       ->delimiter(',')
       ->expected(4);
+  addVizOptions(*cmd, o->viz);
   cmd->add_option("--ros-master", o->ros_master,
                   "live: the ROS 1 master's URI (default: ros.master_uri, else ROS_MASTER_URI)");
   cmd->callback([o, &config] { runRobot(*o, config); });

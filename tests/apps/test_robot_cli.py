@@ -145,6 +145,34 @@ class Robot(unittest.TestCase):
         self.assertEqual([n for n in os.listdir(os.path.join(out, "b")) if ".tmp" in n], [])
 
 
+    def test_foxglove_watches_it_live(self):
+        # robot --viz: the same live view as run's, for one robot process (robot a:
+        # c waits at its start for a rendezvous).
+        modules = os.environ.get("DCL_NODE_MODULES", "")
+        out = os.path.join(self.tmp.name, "viz")
+        proc = subprocess.Popen(
+            [DCL_SLAM, "robot", "--dataset", self.dataset, "--robot", "a", "--out", out,
+             "--domain", DOMAIN, "--interface", "lo", "--swarm", f"robot-viz-a-{os.getpid()}",
+             "--max-frames", "200", "--rate", "2", "--linger", "1", "--viz", "0",
+             "--viz-wait", "60"],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.addCleanup(lambda: proc.poll() is None and proc.kill())
+        line = proc.stderr.readline()
+        self.assertIn("live view: ws://127.0.0.1:", line)
+        port = line.split("ws://127.0.0.1:")[1].split()[0]
+        viewer = subprocess.run(
+            ["node", os.path.join(os.path.dirname(__file__), "foxglove_client.js"), modules,
+             port, "/a/path", "16"], capture_output=True, text=True, timeout=120)
+        self.assertEqual(viewer.returncode, 0, viewer.stderr + viewer.stdout)
+        got = json.loads(viewer.stdout)
+        self.assertEqual(got["channel"]["schemaName"], "foxglove.PosesInFrame")
+        poses = [m["poses"] for m in got["messages"]]
+        self.assertEqual(poses, sorted(poses))
+        self.assertLess(poses[0], poses[-1])
+        _, err = proc.communicate(timeout=120)
+        self.assertEqual(proc.returncode, 0, err)
+
+
 class Swarm(unittest.TestCase):
     """dcl-slam swarm: the three demo robots, one process each over DDS on loopback,
     1000 scans each at four times real time, lingering 20 s of swarm time for the
