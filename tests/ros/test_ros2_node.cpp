@@ -189,9 +189,13 @@ TEST(Ros2Node, ItNamesItselfAndItsEntitiesOnRosDiscoveryInfo) {
                        "ros_discovery_info", nullptr, nullptr);
   ASSERT_GT(t, 0);
   // Transient local, as the writer: the node's last word reaches a late reader.
+  // Every sample kept: the topic has no key, and the nodes of tests running
+  // beside this one in the domain publish on it too; a history of one would
+  // keep only the last of theirs.
   dds_qos_t* qos = dds_create_qos();
   dds_qset_reliability(qos, DDS_RELIABILITY_RELIABLE, DDS_SECS(1));
   dds_qset_durability(qos, DDS_DURABILITY_TRANSIENT_LOCAL);
+  dds_qset_history(qos, DDS_HISTORY_KEEP_ALL, 0);
   const dds_entity_t reader = dds_create_reader(participant, t, qos, nullptr);
   dds_delete_qos(qos);
   ASSERT_GT(reader, 0);
