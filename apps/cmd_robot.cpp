@@ -109,7 +109,7 @@ struct SwarmClock {
 /// The live view (--viz), if any, with this robot as it stands.
 void showLive(LiveView* view, const robot::RobotNode& node, const std::string& name, double time,
               std::size_t frames, std::size_t total_frames, std::size_t bytes_sent) {
-  if (view == nullptr) return;
+  if (view == nullptr || !view->due()) return;
   swarm::SwarmStatus status;
   status.time = time;
   swarm::RobotProgress p;

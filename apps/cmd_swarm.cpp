@@ -224,13 +224,22 @@ GlobalOptions globalOptions(CLI::App& app) {
   return g;
 }
 
-std::vector<std::string> robotArgs(const std::string& exe, const GlobalOptions& g,
-                                   const SwarmOptions& o, const std::string& name,
-                                   const std::string& swarm, double epoch) {
+/// `exe` and the options of the whole program every child must see too;
+/// `reads_dataset`: --allow-outside-paths when this process was given it.
+std::vector<std::string> programArgs(const std::string& exe, const GlobalOptions& g,
+                                     bool reads_dataset) {
   std::vector<std::string> args{exe};
   if (!g.config.empty()) args.insert(args.end(), {"--config", g.config});
   if (!g.log_level.empty()) args.insert(args.end(), {"--log-level", g.log_level});
-  if (datasetReadOptions().allow_outside_paths) args.emplace_back("--allow-outside-paths");
+  if (reads_dataset && datasetReadOptions().allow_outside_paths)
+    args.emplace_back("--allow-outside-paths");
+  return args;
+}
+
+std::vector<std::string> robotArgs(const std::string& exe, const GlobalOptions& g,
+                                   const SwarmOptions& o, const std::string& name,
+                                   const std::string& swarm, double epoch) {
+  std::vector<std::string> args = programArgs(exe, g, /*reads_dataset=*/true);
   args.insert(args.end(), {"robot",
                            "--dataset",
                            o.dataset,
@@ -266,9 +275,7 @@ std::string pointsTopic(const std::string& robot) {
 std::vector<std::string> liveRobotArgs(const std::string& exe, const GlobalOptions& g,
                                        const SwarmOptions& o, const std::string& name,
                                        std::size_t id, const std::string& swarm) {
-  std::vector<std::string> args{exe};
-  if (!g.config.empty()) args.insert(args.end(), {"--config", g.config});
-  if (!g.log_level.empty()) args.insert(args.end(), {"--log-level", g.log_level});
+  std::vector<std::string> args = programArgs(exe, g, /*reads_dataset=*/false);
   args.insert(args.end(), {"robot", "--ros2", "--robot", name, "--id", std::to_string(id),
                            "--points", pointsTopic(name), "--out", o.out, "--swarm", swarm,
                            "--domain", std::to_string(o.domain), "--ros-domain",
@@ -279,10 +286,7 @@ std::vector<std::string> liveRobotArgs(const std::string& exe, const GlobalOptio
 /// `exe ... play`: robot `name`'s scans on the swarm clock, with their dataset stamps.
 std::vector<std::string> playerArgs(const std::string& exe, const GlobalOptions& g,
                                     const SwarmOptions& o, const std::string& name, double epoch) {
-  std::vector<std::string> args{exe};
-  if (!g.config.empty()) args.insert(args.end(), {"--config", g.config});
-  if (!g.log_level.empty()) args.insert(args.end(), {"--log-level", g.log_level});
-  if (datasetReadOptions().allow_outside_paths) args.emplace_back("--allow-outside-paths");
+  std::vector<std::string> args = programArgs(exe, g, /*reads_dataset=*/true);
   args.insert(args.end(),
               {"play", "--dataset", o.dataset, "--robot", name, "--points", pointsTopic(name),
                "--epoch", fmt::format("{:.6f}", epoch), "--rate", fmt::format("{}", o.rate),

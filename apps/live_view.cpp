@@ -58,7 +58,9 @@ std::vector<viz::Channel> LiveView::channels(const std::vector<std::string>& rob
 }
 
 LiveView::LiveView(std::uint16_t port, const std::vector<std::string>& robots, double wait)
-    : robots_(robots.size()), server_("dcl-slam", port, channels(robots)) {
+    : robots_(robots.size()),
+      server_("dcl-slam", port, channels(robots)),
+      scans_published_(robots.size(), 0) {
   // On stderr: stdout keeps what --json promises.
   fmt::print(stderr,
              "live view: ws://127.0.0.1:{} (Foxglove or Lichtblick: open a connection, Foxglove "
@@ -70,15 +72,18 @@ LiveView::LiveView(std::uint16_t port, const std::vector<std::string>& robots, d
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
 }
 
+bool LiveView::due() const {
+  return std::chrono::steady_clock::now() - last_ >= kPeriod;
+}
+
 void LiveView::update(const swarm::SwarmStatus& status, bool now) {
+  if (!now && !due()) return;
   const auto wall = std::chrono::steady_clock::now();
-  if (!now && wall - last_ < kPeriod) return;
   const bool loops_due = now || wall - last_loops_ >= kLoopsPeriod;
   last_ = wall;
   if (loops_due) last_loops_ = wall;
   const auto stamp_ns = static_cast<std::uint64_t>(std::max(0.0, status.time) * 1e9);
   const Json stamp = stampOf(status.time);
-  scans_published_.resize(robots_, 0);
   for (std::size_t r = 0; r < robots_ && r < status.nodes.size(); ++r) {
     const robot::RobotNode& node = *status.nodes[r];
     const auto& keyframes = node.keyframes();

@@ -25,6 +25,10 @@ class LiveView {
   /// port cannot be had.
   LiveView(std::uint16_t port, const std::vector<std::string>& robots, double wait);
 
+  /// Whether update() would publish now (kPeriod of wall time since the last):
+  /// callers that must build a status first ask before.
+  [[nodiscard]] bool due() const;
+
   /// Publishes where the run stands, at most every kPeriod of wall time
   /// unless `now` (the run's end).
   void update(const swarm::SwarmStatus& status, bool now = false);

@@ -30,6 +30,18 @@ def simulate_demo(folder):
     run("simulate", "--preset", "demo", "--out", folder)
 
 
+def break_robot_b_scans(dataset):
+    """Points robot b of DATASET's dataset.yaml at scans in a folder that does not exist."""
+    path = os.path.join(dataset, "dataset.yaml")
+    with open(path) as f:
+        text = f.read()
+    head, sep, tail = text.partition("  - name: b\n")
+    tail = tail.replace("type: sim", "type: kitti\n      folder: missing\n"
+                        "      times: missing.txt", 1)
+    with open(path, "w") as f:
+        f.write(head + sep + tail)
+
+
 def tum_rows(path):
     with open(path) as f:
         return [line for line in f if line.strip() and not line.startswith("#")]
@@ -251,15 +263,8 @@ class Swarm(unittest.TestCase):
     def test_a_failing_robot_stops_the_swarm_and_is_named(self):
         broken = os.path.join(self.tmp.name, "broken")
         simulate_demo(broken)
-        path = os.path.join(broken, "dataset.yaml")
-        with open(path) as f:
-            text = f.read()
-        # Robot b's scans from a folder that does not exist: only its process finds out.
-        head, sep, tail = text.partition("  - name: b\n")
-        tail = tail.replace("type: sim", "type: kitti\n      folder: missing\n"
-                            "      times: missing.txt", 1)
-        with open(path, "w") as f:
-            f.write(head + sep + tail)
+        # Only robot b's own process finds out.
+        break_robot_b_scans(broken)
         out = os.path.join(self.tmp.name, "broken-out")
         code, _, err = run("swarm", "--dataset", broken, "--out", out, "--domain", DOMAIN,
                            check=False, timeout=120)
@@ -325,15 +330,8 @@ class Ros2Robot(unittest.TestCase):
     def test_a_failing_player_stops_the_live_swarm_and_is_named(self):
         broken = os.path.join(self.tmp.name, "broken")
         shutil.copytree(self.dataset, broken)
-        path = os.path.join(broken, "dataset.yaml")
-        with open(path) as f:
-            text = f.read()
-        # Robot b's scans from a folder that does not exist: only its player finds out.
-        head, sep, tail = text.partition("  - name: b\n")
-        tail = tail.replace("type: sim", "type: kitti\n      folder: missing\n"
-                            "      times: missing.txt", 1)
-        with open(path, "w") as f:
-            f.write(head + sep + tail)
+        # Only robot b's player finds out.
+        break_robot_b_scans(broken)
         out = os.path.join(self.tmp.name, "broken-out")
         code, _, err = run("swarm", "--ros2", "--dataset", broken, "--out", out,
                            "--ros-domain", "181", "--domain", "182", check=False, timeout=120)
