@@ -7,7 +7,6 @@
 // scan i of robot r at (start time of r + t_i) / rate after the epoch.
 #include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <cstdio>
 #include <limits>
 #include <string>
@@ -43,13 +42,7 @@ struct PlayOptions {
 };
 
 void runPlay(const PlayOptions& o, const AppConfig& config) {
-  if (!(o.rate > 0.0) || o.rate > 1000.0) throw core::Error("--rate must be in (0, 1000]");
-  if (!(o.epoch >= 0.0) || !std::isfinite(o.epoch))
-    throw core::Error("--epoch must be a finite number of seconds since 1970 (0: now)");
-  if (o.epoch > 0.0 && std::abs(unixNow() - o.epoch) * o.rate > 86400.0)
-    throw core::Error(fmt::format(
-        "--epoch {:.0f} is more than a day of dataset time from now: a mistyped epoch or rate",
-        o.epoch));
+  checkSwarmClock(o.epoch, o.rate);
   const StopSignals signals;
   const io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const auto index = spec.robotIndex(o.robot);

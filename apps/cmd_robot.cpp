@@ -172,31 +172,10 @@ class MeteredTransport final : public comm::Transport {
 
 // ---- the run ------------------------------------------------------------------------------
 
-/// The fastest swarm clock a robot process accepts, and how far from its
-/// data's start the swarm clock may be when it starts (a day).
-constexpr double kMostRate = 1000.0;
-constexpr double kMostClockOffset = 86400.0;
-
 void validate(const RobotOptions& o) {
   if (o.transport != "dds")
     throw core::Error(fmt::format("unknown transport '{}' (known: {})", o.transport, kTransports));
-  if (!(o.rate > 0.0) || !std::isfinite(o.rate))
-    throw core::Error("--rate must be a finite number > 0");
-  if (!(o.epoch >= 0.0) || !std::isfinite(o.epoch))
-    throw core::Error("--epoch must be a finite number of seconds since 1970 (0: now)");
-  // A swarm clock far from its data would play a day of scans at once, or
-  // wait a day for the first: both are a mistyped epoch or rate.
-  if (o.rate > kMostRate)
-    throw core::Error(
-        fmt::format("--rate {:g} is beyond {:g} swarm seconds per wall second", o.rate, kMostRate));
-  if (o.epoch > 0.0) {
-    const double away = (unixNow() - o.epoch) * o.rate;
-    if (std::abs(away) > kMostClockOffset)
-      throw core::Error(fmt::format(
-          "--epoch {:.0f} puts the swarm clock {:.0f} s {} its data's start (more than a day): "
-          "give the Unix time at which the swarm starts, as `dcl-slam swarm` does, or 0 for now",
-          o.epoch, std::abs(away), away > 0.0 ? "past" : "before"));
-  }
+  checkSwarmClock(o.epoch, o.rate);
   if (!(o.linger >= 0.0) || !std::isfinite(o.linger))
     throw core::Error("--linger must be a finite number >= 0");
   if (!(o.settle >= 0.0) || !std::isfinite(o.settle))

@@ -1,6 +1,11 @@
 #include "process.hpp"
 
 #include <chrono>
+#include <cmath>
+
+#include <fmt/format.h>
+
+#include <dcl/core/error.hpp>
 
 namespace dcl::apps {
 namespace {
@@ -38,6 +43,26 @@ int stopSignalCount() {
 
 double unixNow() {
   return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+void checkSwarmClock(double epoch, double rate) {
+  constexpr double kMostRate = 1000.0;
+  constexpr double kMostClockOffset = 86400.0;  // s, a day
+  if (!(rate > 0.0) || !std::isfinite(rate))
+    throw core::Error("--rate must be a finite number > 0");
+  if (rate > kMostRate)
+    throw core::Error(
+        fmt::format("--rate {:g} is beyond {:g} swarm seconds per wall second", rate, kMostRate));
+  if (!(epoch >= 0.0) || !std::isfinite(epoch))
+    throw core::Error("--epoch must be a finite number of seconds since 1970 (0: now)");
+  if (epoch > 0.0) {
+    const double away = (unixNow() - epoch) * rate;
+    if (std::abs(away) > kMostClockOffset)
+      throw core::Error(fmt::format(
+          "--epoch {:.0f} puts the swarm clock {:.0f} s {} its data's start (more than a day): "
+          "give the Unix time at which the swarm starts, as `dcl-slam swarm` does, or 0 for now",
+          epoch, std::abs(away), away > 0.0 ? "past" : "before"));
+  }
 }
 
 }  // namespace dcl::apps

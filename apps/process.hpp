@@ -34,4 +34,11 @@ int stopSignalCount();
 /// s since the Unix epoch, from the system clock (shared by processes on one host).
 double unixNow();
 
+/// Checks a swarm clock's --epoch (Unix time of swarm time 0; 0: now) and
+/// --rate (swarm seconds per wall second, at most 1000): a clock more than a
+/// day from its data's start would play a day of scans at once, or wait a
+/// day for the first, both a mistyped epoch or rate. Throws core::Error
+/// naming the option.
+void checkSwarmClock(double epoch, double rate);
+
 }  // namespace dcl::apps
