@@ -489,8 +489,9 @@ std::string trajectoryPlot(const RunSummary& run, const RunPairs& pairs) {
 // ------------------------------------------------------------------------------------------------
 // The merged map from above
 
-// The map's plot area: the robots' estimates and the accepted loops, with a
-// margin of 15 % (at least 20 m) for what they saw around them; one scale for x and y.
+// The map's plot area: the robots' estimates (the map's points when there are
+// none), with a margin of 15 % (at least 20 m) for what they saw around them;
+// one scale for x and y.
 Axes mapAxes(const RunSummary& run) {
   Range x, y;
   for (const RobotRun& robot : run.robots) {
