@@ -8,14 +8,18 @@
 #include <nlohmann/json.hpp>
 
 #include <dcl/core/base64.hpp>
+#include <dcl/odometry/preprocessing.hpp>
 
 namespace dcl::apps {
 namespace {
 
-using Json = nlohmann::json;
+using JsonMessage = nlohmann::json;  // messages: key order does not matter
 
 constexpr auto kPeriod = std::chrono::milliseconds(250);
 constexpr auto kLoopsPeriod = std::chrono::seconds(1);  ///< the loops need the graph copied
+constexpr auto kMapPeriod = std::chrono::seconds(3);    ///< every keyframe's cloud moved
+constexpr double kMapVoxel = 0.4;  ///< m, the served map keeps one point per voxel of this edge
+constexpr int kChannelsPerRobot = 5;
 
 // The JSON Schemas of what the channels carry (Foxglove draws
 // foxglove.PosesInFrame by its name; the schema describes the fields).
@@ -32,14 +36,43 @@ constexpr const char* kCountersSchema = R"({"type":"object","properties":{
 "time":{"type":"number"},"frames":{"type":"integer"},"keyframes":{"type":"integer"},
 "inter_loops":{"type":"integer"},"bytes_sent":{"type":"integer"}}})";
 
-Json poseJson(const Eigen::Isometry3d& T) {
+JsonMessage poseJson(const Eigen::Isometry3d& T) {
   const Eigen::Quaterniond q(T.linear());
   return {{"position",
            {{"x", T.translation().x()}, {"y", T.translation().y()}, {"z", T.translation().z()}}},
           {"orientation", {{"x", q.x()}, {"y", q.y()}, {"z", q.z()}, {"w", q.w()}}}};
 }
 
-Json stampOf(double seconds) {
+/// A foxglove.PointCloud of packed float x, y, z at `pose` in frame map.
+JsonMessage pointCloudJson(const JsonMessage& stamp, const Eigen::Isometry3d& pose,
+                           const std::vector<Eigen::Vector3f>& points) {
+  static_assert(sizeof(Eigen::Vector3f) == 12, "packed float xyz");
+  std::vector<std::uint8_t> data(12 * points.size());
+  if (!data.empty()) std::memcpy(data.data(), points.data(), data.size());
+  JsonMessage fields = JsonMessage::array();
+  for (int axis = 0; axis < 3; ++axis)
+    fields.push_back({{"name", std::string(1, static_cast<char>('x' + axis))},
+                      {"offset", 4 * axis},
+                      {"type", 7}});  // FLOAT32
+  return {{"timestamp", stamp}, {"frame_id", "map"}, {"pose", poseJson(pose)},
+          {"point_stride", 12}, {"fields", fields},  {"data", core::base64(data)}};
+}
+
+/// The robot's map as it now stands: every keyframe's cloud at its current
+/// estimate, one point per kMapVoxel voxel.
+std::vector<Eigen::Vector3f> mapOf(const robot::RobotNode& node) {
+  std::vector<Eigen::Vector3d> all;
+  for (const core::Keyframe& k : node.keyframes()) {
+    const Eigen::Isometry3d T = node.estimate(k.id);
+    for (const Eigen::Vector3f& p : k.cloud.points) all.push_back(T * p.cast<double>());
+  }
+  std::vector<Eigen::Vector3f> kept;
+  for (const Eigen::Vector3d& p : odometry::voxelDownsample(all, kMapVoxel))
+    kept.push_back(p.cast<float>());
+  return kept;
+}
+
+JsonMessage stampOf(double seconds) {
   const auto ns = static_cast<std::int64_t>(std::max(0.0, seconds) * 1e9);
   return {{"sec", ns / 1000000000}, {"nsec", ns % 1000000000}};
 }
@@ -53,6 +86,7 @@ std::vector<viz::Channel> LiveView::channels(const std::vector<std::string>& rob
     out.push_back({"/" + r + "/scan", "foxglove.PointCloud", kObjectSchema});
     out.push_back({"/" + r + "/loops", "foxglove.SceneUpdate", kObjectSchema});
     out.push_back({"/" + r + "/counters", "dcl_slam.Counters", kCountersSchema});
+    out.push_back({"/" + r + "/map", "foxglove.PointCloud", kObjectSchema});
   }
   return out;
 }
@@ -72,6 +106,10 @@ LiveView::LiveView(std::uint16_t port, const std::vector<std::string>& robots, d
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
 }
 
+std::size_t LiveView::channel(std::size_t robot, std::size_t kind) {
+  return kChannelsPerRobot * robot + kind;
+}
+
 bool LiveView::due() const {
   return std::chrono::steady_clock::now() - last_ >= kPeriod;
 }
@@ -80,42 +118,34 @@ void LiveView::update(const swarm::SwarmStatus& status, bool now) {
   if (!now && !due()) return;
   const auto wall = std::chrono::steady_clock::now();
   const bool loops_due = now || wall - last_loops_ >= kLoopsPeriod;
+  const bool map_due = now || wall - last_map_ >= kMapPeriod;
   last_ = wall;
   if (loops_due) last_loops_ = wall;
+  if (map_due) last_map_ = wall;
   const auto stamp_ns = static_cast<std::uint64_t>(std::max(0.0, status.time) * 1e9);
-  const Json stamp = stampOf(status.time);
+  const JsonMessage stamp = stampOf(status.time);
   for (std::size_t r = 0; r < robots_ && r < status.nodes.size(); ++r) {
     const robot::RobotNode& node = *status.nodes[r];
     const auto& keyframes = node.keyframes();
-    Json poses = Json::array();
+    JsonMessage poses = JsonMessage::array();
     for (const core::Keyframe& k : keyframes) poses.push_back(poseJson(node.estimate(k.id)));
-    server_.publish(4 * r, stamp_ns,
-                    Json{{"timestamp", stamp}, {"frame_id", "map"}, {"poses", poses}}.dump());
+    server_.publish(
+        channel(r, 0), stamp_ns,
+        JsonMessage{{"timestamp", stamp}, {"frame_id", "map"}, {"poses", poses}}.dump());
     // The newest keyframe's scan where the robot is now thought to have taken it.
     if (!keyframes.empty() && keyframes.size() != scans_published_[r]) {
       scans_published_[r] = keyframes.size();
       const core::Keyframe& k = keyframes.back();
-      std::vector<std::uint8_t> data(12 * k.cloud.points.size());
-      std::memcpy(data.data(), k.cloud.points.data(), data.size());
-      static_assert(sizeof(Eigen::Vector3f) == 12, "packed float xyz");
-      Json fields = Json::array();
-      for (int axis = 0; axis < 3; ++axis)
-        fields.push_back({{"name", std::string(1, static_cast<char>('x' + axis))},
-                          {"offset", 4 * axis},
-                          {"type", 7}});  // FLOAT32
-      server_.publish(4 * r + 1, stamp_ns,
-                      Json{{"timestamp", stamp},
-                           {"frame_id", "map"},
-                           {"pose", poseJson(node.estimate(k.id))},
-                           {"point_stride", 12},
-                           {"fields", fields},
-                           {"data", core::base64(data)}}
-                          .dump());
+      server_.publish(channel(r, 1), stamp_ns,
+                      pointCloudJson(stamp, node.estimate(k.id), k.cloud.points).dump());
     }
+    if (map_due && !keyframes.empty() && server_.subscribed(channel(r, 4)))
+      server_.publish(channel(r, 4), stamp_ns,
+                      pointCloudJson(stamp, Eigen::Isometry3d::Identity(), mapOf(node)).dump());
     // The accepted inter-robot loops, a line each between its two keyframes.
     if (loops_due) {
       const backend::PoseGraph graph = node.graph();
-      Json points = Json::array();
+      JsonMessage points = JsonMessage::array();
       for (const robot::InterLoop& loop : node.interLoops()) {
         if (!loop.accepted || !graph.hasNode(loop.factor.from) || !graph.hasNode(loop.factor.to))
           continue;
@@ -124,35 +154,36 @@ void LiveView::update(const swarm::SwarmStatus& status, bool now) {
           points.push_back({{"x", p.x()}, {"y", p.y()}, {"z", p.z()}});
         }
       }
-      Json line = {{"type", 2},  // LINE_LIST
-                   {"pose", poseJson(Eigen::Isometry3d::Identity())},
-                   {"thickness", 0.3},
-                   {"scale_invariant", false},
-                   {"points", points},
-                   {"color", {{"r", 0.17}, {"g", 0.63}, {"b", 0.17}, {"a", 1.0}}},
-                   {"colors", Json::array()},
-                   {"indices", Json::array()}};
-      Json entity = {{"timestamp", stamp},
-                     {"frame_id", "map"},
-                     {"id", status.robots[r].name + "/loops"},
-                     {"lifetime", {{"sec", 0}, {"nsec", 0}}},
-                     {"frame_locked", false},
-                     {"metadata", Json::array()},
-                     {"lines", Json::array({line})}};
+      JsonMessage line = {{"type", 2},  // LINE_LIST
+                          {"pose", poseJson(Eigen::Isometry3d::Identity())},
+                          {"thickness", 0.3},
+                          {"scale_invariant", false},
+                          {"points", points},
+                          {"color", {{"r", 0.17}, {"g", 0.63}, {"b", 0.17}, {"a", 1.0}}},
+                          {"colors", JsonMessage::array()},
+                          {"indices", JsonMessage::array()}};
+      JsonMessage entity = {{"timestamp", stamp},
+                            {"frame_id", "map"},
+                            {"id", status.robots[r].name + "/loops"},
+                            {"lifetime", {{"sec", 0}, {"nsec", 0}}},
+                            {"frame_locked", false},
+                            {"metadata", JsonMessage::array()},
+                            {"lines", JsonMessage::array({line})}};
       for (const char* none :
            {"arrows", "cubes", "spheres", "cylinders", "triangles", "texts", "models"})
-        entity[none] = Json::array();
-      server_.publish(
-          4 * r + 2, stamp_ns,
-          Json{{"deletions", Json::array()}, {"entities", Json::array({entity})}}.dump());
+        entity[none] = JsonMessage::array();
+      server_.publish(channel(r, 2), stamp_ns,
+                      JsonMessage{{"deletions", JsonMessage::array()},
+                                  {"entities", JsonMessage::array({entity})}}
+                          .dump());
     }
     const swarm::RobotProgress& p = status.robots[r];
-    server_.publish(4 * r + 3, stamp_ns,
-                    Json{{"time", status.time},
-                         {"frames", p.frames},
-                         {"keyframes", p.keyframes},
-                         {"inter_loops", p.inter_loops},
-                         {"bytes_sent", p.bytes_sent}}
+    server_.publish(channel(r, 3), stamp_ns,
+                    JsonMessage{{"time", status.time},
+                                {"frames", p.frames},
+                                {"keyframes", p.keyframes},
+                                {"inter_loops", p.inter_loops},
+                                {"bytes_sent", p.bytes_sent}}
                         .dump());
   }
 }

@@ -4,8 +4,10 @@
 // Foxglove (or Lichtblick) over the Foxglove WebSocket protocol. Per robot
 // its path (foxglove.PosesInFrame, keyframes at their current estimates in
 // the robot's frame), its newest keyframe's scan there (foxglove.PointCloud),
-// its accepted inter-robot loops (foxglove.SceneUpdate, lines) and its
-// counters; a few times a wall second.
+// its accepted inter-robot loops (foxglove.SceneUpdate, lines), its
+// counters, a few times a wall second, and its whole map (foxglove.PointCloud,
+// every keyframe's cloud where the robot now thinks it was, thinned to one
+// point per 0.4 m voxel) every 3 wall seconds.
 
 #include <chrono>
 #include <cstdint>
@@ -35,15 +37,17 @@ class LiveView {
 
   [[nodiscard]] std::uint16_t port() const { return server_.port(); }
 
-  /// The channels of robots named `robots`: per robot its path, scan, loops
-  /// and counters (channel 4 r + 0..3).
+  /// The channels of robots named `robots`: per robot its path, scan, loops,
+  /// counters and map (channel(r, 0..4)).
   static std::vector<viz::Channel> channels(const std::vector<std::string>& robots);
+  static std::size_t channel(std::size_t robot, std::size_t kind);
 
  private:
   std::size_t robots_;
   viz::Server server_;
   std::chrono::steady_clock::time_point last_{};
   std::chrono::steady_clock::time_point last_loops_{};
+  std::chrono::steady_clock::time_point last_map_{};
   std::vector<std::size_t> scans_published_;  ///< per robot, keyframes when its scan went out
 };
 

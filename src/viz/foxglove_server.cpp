@@ -34,6 +34,8 @@ struct Server::Impl {
   /// Per client: its subscriptions, subscription id -> channel (index).
   std::map<Handle, std::map<std::uint32_t, std::size_t>, std::owner_less<Handle>> clients;
   std::atomic<std::size_t> connected{0};
+  /// Per channel: how many subscriptions it has, over every client.
+  std::unique_ptr<std::atomic<std::size_t>[]> subscribers;
   std::atomic<std::size_t> refused{0};
   std::atomic<std::size_t> dropped{0};
   std::string info;
@@ -50,6 +52,14 @@ struct Server::Impl {
   void onClose(Handle h) {
     clients.erase(h);
     connected = clients.size();
+    recount();
+  }
+
+  void recount() {
+    std::vector<std::size_t> count(channels.size(), 0);
+    for (const auto& [h, subscriptions] : clients)
+      for (const auto& [subscription, channel] : subscriptions) ++count[channel];
+    for (std::size_t c = 0; c < count.size(); ++c) subscribers[c] = count[c];
   }
 
   void onMessage(Handle h, Endpoint::message_ptr message) {
@@ -72,6 +82,7 @@ struct Server::Impl {
     } catch (const std::exception&) {
       ++refused;  // a client's mistake never stops the server or the run
     }
+    recount();
   }
 
   void send(std::size_t channel, std::uint64_t stamp_ns, const std::string& payload) {
@@ -97,6 +108,7 @@ Server::Server(const std::string& name, std::uint16_t port, const std::vector<Ch
     : impl_(std::make_unique<Impl>()) {
   Impl& i = *impl_;
   i.channels = channels;
+  i.subscribers = std::make_unique<std::atomic<std::size_t>[]>(channels.size());
   std::vector<std::uint32_t> ids;
   for (std::size_t k = 0; k < channels.size(); ++k)
     ids.push_back(static_cast<std::uint32_t>(k + 1));
@@ -166,6 +178,10 @@ std::uint16_t Server::port() const {
 
 std::size_t Server::clients() const {
   return impl_->connected;
+}
+
+bool Server::subscribed(std::size_t channel) const {
+  return channel < impl_->channels.size() && impl_->subscribers[channel] > 0;
 }
 
 void Server::publish(std::size_t channel, std::uint64_t stamp_ns, std::string payload) {

@@ -1896,7 +1896,8 @@ class LiveView(unittest.TestCase):
             viewers = {"a": self.client(port, "/a/path", 6, junk=True),
                        "b": self.client(port, "/b/path", 6),
                        "scan": self.client(port, "/a/scan", 3),
-                       "loops": self.client(port, "/b/loops", 2)}
+                       "loops": self.client(port, "/b/loops", 2),
+                       "map": self.client(port, "/a/map", 2)}
             got_all = {}
             for name, viewer in viewers.items():
                 out, err = viewer.communicate(timeout=180)
@@ -1905,7 +1906,16 @@ class LiveView(unittest.TestCase):
             rest, err = proc.communicate(timeout=180)
             self.assertEqual(proc.returncode, 0, err)
             metrics = json.loads(rest)
-        scan, loops = got_all.pop("scan"), got_all.pop("loops")
+        scan, loops, whole = got_all.pop("scan"), got_all.pop("loops"), got_all.pop("map")
+        # The whole map, thinned: more than a scan holds, and growing as the robot drives.
+        self.assertEqual(whole["channel"]["schemaName"], "foxglove.PointCloud")
+        self.assertEqual(len(whole["messages"]), 2)
+        for m in whole["messages"]:
+            self.assertEqual((m["fields"], m["frame_id"]), ("x:0:7,y:4:7,z:8:7", "map"))
+        sizes = [m["points"] for m in whole["messages"]]
+        self.assertGreater(sizes[0], 1000)
+        self.assertGreaterEqual(sizes[1], sizes[0])
+        self.assertGreater(sizes[1], max(m["points"] for m in scan["messages"]))
         self.assertEqual(scan["channel"]["schemaName"], "foxglove.PointCloud")
         for m in scan["messages"]:
             # Packed float x, y, z; a whole number of points, as many as a keyframe keeps.

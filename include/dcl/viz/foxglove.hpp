@@ -71,6 +71,9 @@ class Server {
   [[nodiscard]] std::uint16_t port() const;
   /// Clients connected now.
   [[nodiscard]] std::size_t clients() const;
+  /// Whether some client is subscribed to channel `channel` now: what only
+  /// a subscriber would see need not be built.
+  [[nodiscard]] bool subscribed(std::size_t channel) const;
   /// Sends `payload` (JSON) on channel `channel` (its index in the
   /// constructor's list) to every client subscribed to it. A client that
   /// does not keep up (more than a few MB waiting) misses messages.
