@@ -20,6 +20,7 @@
 
 #include "commands.hpp"
 #include "output_folder.hpp"
+#include "printing.hpp"
 #include "robot_outputs.hpp"
 #include "run_swarm.hpp"
 
@@ -49,10 +50,6 @@ std::string simulate(const std::string& out, const std::string& shown) {
   return folder;
 }
 
-std::string metres(const Json& value) {
-  return value.is_null() ? "-" : fmt::format("{:.3f}", value.get<double>());
-}
-
 /// How much lower the ATE with collaboration is than by odometry alone, "22 %"
 /// ("-27 %": higher), or "-" without both.
 std::string cut(const Json& r) {
@@ -68,8 +65,8 @@ void printTable(const Json& m) {
              "cut", "ATE joint", "loops kept", "kB sent");
   for (const Json& r : m["robots"]) {
     fmt::print("{:<6} {:>10} {:>12} {:>6} {:>10} {:>12} {:>9.1f}\n", r["name"].get<std::string>(),
-               metres(r["ate_rmse_odometry_only"]), metres(r["ate_rmse"]), cut(r),
-               metres(r["ate_rmse_joint"]),
+               metresText(r["ate_rmse_odometry_only"]), metresText(r["ate_rmse"]), cut(r),
+               metresText(r["ate_rmse_joint"]),
                fmt::format("{} + {}", r["intra_loops"].get<std::size_t>(),
                            r["inter_loops_accepted"].get<std::size_t>()),
                static_cast<double>(r["bytes_sent"].get<std::size_t>()) / 1000.0);

@@ -37,6 +37,7 @@
 #include "commands.hpp"
 #include "option_checks.hpp"
 #include "output_folder.hpp"
+#include "printing.hpp"
 
 namespace dcl::apps {
 
@@ -54,10 +55,6 @@ struct LoopsOptions {
   bool json = false;                    ///< print metrics.json instead of the summary
   bool force = false;                   ///< replace --out even when it holds other files
 };
-
-double seconds(Clock::time_point since) {
-  return std::chrono::duration<double>(Clock::now() - since).count();
-}
 
 /// One robot after its front-end: keyframes (with clouds), its local graph
 /// (odometry and intra-robot loops), the ground truth at its keyframes, and
@@ -350,7 +347,7 @@ void runLoops(const LoopsOptions& o, const AppConfig& config) {
   std::vector<Robot> robots;
   for (std::size_t r = 0; r < spec.robots.size(); ++r)
     robots.push_back(runFrontEnd(spec, r, world, config, o.max_frames));
-  const double front_end_s = seconds(start);
+  const double front_end_s = secondsSince(start);
 
   const std::shared_ptr<const place::Descriptor> descriptor =
       place::makeDescriptor(config.place.descriptor);
@@ -375,7 +372,7 @@ void runLoops(const LoopsOptions& o, const AppConfig& config) {
     progress.update(++done);
   });
   progress.finish();
-  const double verify_s = seconds(verify_start);
+  const double verify_s = secondsSince(verify_start);
   for (Candidate& c : candidates)
     c.correct =
         c.verification.accepted && c.error_m <= o.max_error_m && c.error_deg <= o.max_error_deg;
@@ -383,10 +380,10 @@ void runLoops(const LoopsOptions& o, const AppConfig& config) {
   const robot::RobotConfig node = robotConfig(config);
   const auto pcm_start = Clock::now();
   const Json pairs = runPcm(robots, candidates, node);
-  const double pcm_s = seconds(pcm_start);
+  const double pcm_s = secondsSince(pcm_start);
   const auto check_start = Clock::now();
   checkKeptLoops(robots, candidates, node);
-  const double check_s = seconds(check_start);
+  const double check_s = secondsSince(check_start);
 
   Json m = {{"dataset", spec.name}, {"robots", robots.size()}};
   Json keyframes = Json::object();

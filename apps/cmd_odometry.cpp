@@ -33,6 +33,7 @@
 #include "front_end.hpp"
 #include "option_checks.hpp"
 #include "output_folder.hpp"
+#include "printing.hpp"
 
 namespace dcl::apps {
 
@@ -263,7 +264,7 @@ void writeOutputs(const OdometryOptions& o, const FrameLog& log,
                       [&](std::ostream& s) { s << metrics.dump(2) << "\n"; });
 }
 
-void printSummary(const Json& m) {
+void printOdometrySummary(const Json& m) {
   const Json& f = m["frames"];
   fmt::print(
       "{} frames ({} accepted, {} degenerate, {} with a sharp change of motion), {:.1f} m, {:.1f} "
@@ -322,7 +323,7 @@ void runOdometry(const OdometryOptions& o, const AppConfig& config) {
   staged.out = out.path();
   writeOutputs(staged, log, mapper, metrics);
   out.commit();
-  printSummary(metrics);
+  printOdometrySummary(metrics);
   fmt::print("wrote {}/{{trajectory.tum,trajectory.kitti,odometry.tum,keyframes/,metrics.json}}\n",
              o.out);
 }

@@ -16,6 +16,7 @@
 #include <dcl/core/error.hpp>
 
 #include "commands.hpp"
+#include "printing.hpp"
 
 namespace dcl::apps {
 
@@ -89,13 +90,7 @@ Json pairsJson(const backend::PcmResult& result,
   return pairs;
 }
 
-std::size_t robotCount(const backend::PoseGraph& graph) {
-  std::set<core::RobotId> robots;
-  for (const auto& [key, pose] : graph.nodes()) robots.insert(key.robot);
-  return robots.size();
-}
-
-void printSummary(const Json& m) {
+void printPcmSummary(const Json& m) {
   fmt::print("pcm '{}': {} robots, {} inter-robot loops, threshold {}\n",
              m["graph"].get<std::string>(), m["robots"].get<std::size_t>(),
              m["loops"].get<std::size_t>(), m["threshold"].get<double>());
@@ -141,7 +136,7 @@ void runPcmCommand(const PcmOptions& o, backend::PcmConfig config,
   m["seconds"] = seconds;
   m["pairs"] = pairsJson(result, reference);
   if (o.json) return fmt::print("{}\n", m.dump(2));
-  printSummary(m);
+  printPcmSummary(m);
 }
 
 }  // namespace

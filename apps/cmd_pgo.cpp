@@ -22,6 +22,7 @@
 #include <dcl/robot/dgs_wire.hpp>
 
 #include "commands.hpp"
+#include "printing.hpp"
 
 namespace dcl::apps {
 
@@ -198,16 +199,6 @@ class WireMeter {
   std::map<std::pair<core::RobotId, core::RobotId>, Told> told_;
 };
 
-double seconds(Clock::time_point since) {
-  return std::chrono::duration<double>(Clock::now() - since).count();
-}
-
-std::size_t robotCount(const backend::PoseGraph& graph) {
-  std::set<core::RobotId> robots;
-  for (const auto& [key, pose] : graph.nodes()) robots.insert(key.robot);
-  return robots.size();
-}
-
 backend::PoseGraph readGraph(const PgoOptions& o) {
   backend::PoseGraph graph = backend::readMultiRobotGraph(o.g2o, o.skip_unknown_lines);
   if (o.robots < 1) throw core::Error("--robots must be at least 1");
@@ -281,7 +272,7 @@ void runDistributed(Json& m, backend::PoseGraph& graph, const PgoOptions& o,
        {"bytes_per_robot", static_cast<double>(bytes) / static_cast<double>(robotCount(graph))},
        {"seconds_dgs", dgs.seconds},
        {"seconds_refine", refine.seconds},
-       {"seconds", seconds(start)}});
+       {"seconds", secondsSince(start)}});
 }
 
 Json runPgo(const PgoOptions& o, const backend::DgsConfig& dgs_config,
@@ -314,7 +305,7 @@ Json runPgo(const PgoOptions& o, const backend::DgsConfig& dgs_config,
   return m;
 }
 
-void printSummary(const Json& m) {
+void printPgoSummary(const Json& m) {
   fmt::print("{}: {} robots, {} nodes, {} factors; method {}\n", m["graph"].get<std::string>(),
              m["robots"].get<std::size_t>(), m["nodes"].get<std::size_t>(),
              m["factors"].get<std::size_t>(), m["method"].get<std::string>());
@@ -359,7 +350,7 @@ void addPgoCommand(CLI::App& app, const AppConfig& config) {
   cmd->callback([o, &config] {
     const Json m = runPgo(*o, config.dgs, config.refine);
     if (o->json) return fmt::print("{}\n", m.dump(2));
-    printSummary(m);
+    printPgoSummary(m);
   });
 }
 

@@ -30,6 +30,7 @@
 #include <dcl/core/error.hpp>
 
 #include "commands.hpp"
+#include "printing.hpp"
 #include "process.hpp"
 #include "robot_outputs.hpp"
 
@@ -187,10 +188,6 @@ std::vector<std::uint64_t> numbers(const Life& life) {
 
 // ---- the run -------------------------------------------------------------------
 
-double since(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
 struct PingRun {
   const PingOptions& options;
   core::RobotId self;
@@ -252,19 +249,19 @@ struct PingRun {
   void sleep(double now) {
     double until = std::min(options.duration, now + max_sleep);
     if (next < options.messages) until = std::min(until, due(next));
-    const double ms = std::ceil(std::max(0.0, until - since(start)) * 1000.0);
+    const double ms = std::ceil(std::max(0.0, until - secondsSince(start)) * 1000.0);
     transport.wait(std::chrono::milliseconds(static_cast<std::int64_t>(ms)));
   }
 
   /// Runs until --duration or a signal; returns the seconds it ran.
   double run() {
-    for (double now = since(start); now < options.duration && stopSignal() == 0;
-         now = since(start)) {
+    for (double now = secondsSince(start); now < options.duration && stopSignal() == 0;
+         now = secondsSince(start)) {
       sendDue(now);
       take(now);
       sleep(now);
     }
-    return since(start);
+    return secondsSince(start);
   }
 };
 
@@ -368,7 +365,7 @@ void printLife(const std::string& peer, const Json& life) {
                   duplicates == 0 ? "none twice" : fmt::format("{} DELIVERED TWICE", duplicates)));
 }
 
-void printSummary(const Json& m) {
+void printPingSummary(const Json& m) {
   printLine(fmt::format("ping summary: robot {} (incarnation {}), {:.1f} s{}",
                         m["robot"].get<int>(), m["incarnation"].get<std::uint32_t>(),
                         m["duration"].get<double>(),
@@ -420,7 +417,7 @@ void runPing(const PingOptions& o, const comm::MessengerConfig& config) {
   const double seconds = r.run();
   const Json m = summary(r, seconds);
   if (o.json) return printLine(m.dump(2));
-  printSummary(m);
+  printPingSummary(m);
 }
 
 }  // namespace

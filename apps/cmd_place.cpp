@@ -24,6 +24,7 @@
 
 #include "commands.hpp"
 #include "output_folder.hpp"
+#include "printing.hpp"
 
 namespace dcl::apps {
 
@@ -261,7 +262,7 @@ std::string thresholdText(const Json& curve) {
   return t.is_null() ? "none" : fmt::format("{:.3f}", t.get<double>());
 }
 
-void printSummary(const Json& m) {
+void printPlaceSummary(const Json& m) {
   const Json& c = m["curve"];
   fmt::print("bench place '{}' ({}): {} keyframes of {} robots, {} queries, {} with a revisit\n",
              m["dataset"].get<std::string>(), m["descriptor"].get<std::string>(),
@@ -312,7 +313,7 @@ void runBenchPlace(const PlaceOptions& o, const PlaceSection& section) {
   writeOutputs(staged, spec, e, published, sequence, metrics);
   out.commit();
   if (o.json) return fmt::print("{}\n", metrics.dump(2));
-  printSummary(metrics);
+  printPlaceSummary(metrics);
   fmt::print("wrote {}/{{pr.csv,pr.svg,queries.csv,metrics.json}}\n", o.out);
 }
 

@@ -37,6 +37,7 @@
 #include "live_view.hpp"
 #include "option_checks.hpp"
 #include "output_folder.hpp"
+#include "printing.hpp"
 #include "robot_outputs.hpp"
 #include "run_swarm.hpp"
 
@@ -301,10 +302,6 @@ swarm::SwarmResult runWithProgress(std::vector<swarm::SwarmMember> members,
   return result;
 }
 
-std::string metres(const Json& value) {
-  return value.is_null() ? "-" : fmt::format("{:.3f}", value.get<double>());
-}
-
 }  // namespace
 
 void printRunTable(const Json& m, const std::string& out) {
@@ -314,8 +311,8 @@ void printRunTable(const Json& m, const std::string& out) {
     fmt::print(
         "{:<6} {:>7} {:>9} {:>10} {:>10} {:>6} {:>7}/{:<4} {:>10.1f}\n",
         r["name"].get<std::string>(), r["frames"].get<std::size_t>(),
-        r["keyframes"].get<std::size_t>(), metres(r["ate_rmse"]),
-        metres(r["ate_rmse_odometry_only"]), r["intra_loops"].get<std::size_t>(),
+        r["keyframes"].get<std::size_t>(), metresText(r["ate_rmse"]),
+        metresText(r["ate_rmse_odometry_only"]), r["intra_loops"].get<std::size_t>(),
         r["inter_loops_accepted"].get<std::size_t>(),
         r["inter_loops_accepted"].get<std::size_t>() + r["inter_loops_rejected"].get<std::size_t>(),
         static_cast<double>(r["bytes_sent"].get<std::size_t>()) / 1000.0);

@@ -28,6 +28,7 @@
 
 #include "commands.hpp"
 #include "output_folder.hpp"
+#include "printing.hpp"
 
 namespace dcl::apps {
 
@@ -60,10 +61,6 @@ struct BenchSimOptions {
   unsigned threads = std::max(1u, std::thread::hardware_concurrency());  ///< worker threads
   bool json = false;  ///< machine-readable result
 };
-
-double seconds(Clock::time_point since) {
-  return std::chrono::duration<double>(Clock::now() - since).count();
-}
 
 std::string humanBytes(std::uintmax_t bytes) {
   if (bytes < 10'000) return fmt::format("{} B", bytes);
@@ -121,7 +118,7 @@ void exportScans(const io::DatasetSpec& spec, const std::string& out, const std:
   if (bar) bar->finish();
   fmt::print("exported {} scans ({} points, {}) as {} to {} in {:.1f} s\n", result.scans,
              result.points, humanBytes(result.bytes), sim::toString(format),
-             (fs::path(shown) / std::string(sim::toString(format))).string(), seconds(start));
+             (fs::path(shown) / std::string(sim::toString(format))).string(), secondsSince(start));
 }
 
 std::optional<sim::ExportFormat> exportFormat(const std::string& name) {
@@ -259,11 +256,11 @@ void runBenchSim(const BenchSimOptions& o) {
   const auto robots = benchRobots(spec, o.robot);
   auto start = Clock::now();
   const sim::SimWorld world(spec, {.parallel = false});  // one scan per thread
-  const double build_s = seconds(start);
+  const double build_s = secondsSince(start);
   const auto jobs = scanJobs(world, robots);
   start = Clock::now();
   const std::size_t points = generateAll(world, jobs, o.threads);
-  const double scan_s = seconds(start);
+  const double scan_s = secondsSince(start);
   const double rate = jobs.size() / scan_s;
   // Real time: every robot's sensor delivers rate_hz scans a second, all at once.
   const double realtime = rate / (world.simulator().model().rate_hz * robots.size());

@@ -45,6 +45,7 @@
 #include "commands.hpp"
 #include "option_checks.hpp"
 #include "output_folder.hpp"
+#include "printing.hpp"
 #include "process.hpp"
 #include "robot_outputs.hpp"
 
@@ -79,10 +80,6 @@ struct SwarmOptions {
   bool ros2 = false;             ///< live robots, each fed over ROS 2 by a player
   std::uint32_t ros_domain = 0;  ///< the ROS 2 topics' DDS domain, with --ros2
 };
-
-double since(SteadyClock::time_point start) {
-  return std::chrono::duration<double>(SteadyClock::now() - start).count();
-}
 
 // ---- the plan -------------------------------------------------------------------------
 
@@ -345,7 +342,7 @@ std::optional<std::size_t> waitAll(std::vector<Child>& children, std::optional<d
         })) {
       played = SteadyClock::now();
     }
-    if (played && !failed && since(*played) >= linger / rate) {
+    if (played && !failed && secondsSince(*played) >= linger / rate) {
       for (Child& c : children) {
         if (!c.player && !c.status && !c.told_to_stop) {
           ::kill(c.pid, SIGINT);
@@ -357,8 +354,8 @@ std::optional<std::size_t> waitAll(std::vector<Child>& children, std::optional<d
       stopping = SteadyClock::now();
       signalAll(children, SIGTERM);
     }
-    if (stopping && since(*stopping) > kStopGrace) signalAll(children, SIGKILL);
-    if (played && since(*played) > linger / rate + kLiveSettle + kStopGrace)
+    if (stopping && secondsSince(*stopping) > kStopGrace) signalAll(children, SIGKILL);
+    if (played && secondsSince(*played) > linger / rate + kLiveSettle + kStopGrace)
       signalAll(children, SIGKILL);
     const auto running =
         std::count_if(children.begin(), children.end(), [](const Child& c) { return !c.status; });
@@ -506,18 +503,15 @@ Json metricsJson(const SwarmRun& run, const std::vector<eval::RobotMetrics>& met
           {"robots", robots}};
 }
 
-std::string metres(const Json& value) {
-  return value.is_null() ? "-" : fmt::format("{:.3f}", value.get<double>());
-}
-
 void printTable(const Json& m, const std::string& out) {
   fmt::print("{:<6} {:>7} {:>9} {:>9} {:>9} {:>11} {:>9} {:>7} {:>7} {:>8}\n", "robot", "frames",
              "ATE (m)", "odometry", "joint", "loops", "kB sent", "kB/s tx", "kB/s rx", "max lag");
   for (const Json& r : m["robots"]) {
     const auto accepted = r["inter_loops_accepted"].get<std::size_t>();
     fmt::print("{:<6} {:>7} {:>9} {:>9} {:>9} {:>11} {:>9.1f} {:>7.2f} {:>7.2f} {:>7.2f}s\n",
-               r["name"].get<std::string>(), r["frames"].get<std::size_t>(), metres(r["ate_rmse"]),
-               metres(r["ate_rmse_odometry_only"]), metres(r["ate_rmse_joint"]),
+               r["name"].get<std::string>(), r["frames"].get<std::size_t>(),
+               metresText(r["ate_rmse"]), metresText(r["ate_rmse_odometry_only"]),
+               metresText(r["ate_rmse_joint"]),
                fmt::format("{} + {}/{}", r["intra_loops"].get<std::size_t>(), accepted,
                            accepted + r["inter_loops_rejected"].get<std::size_t>()),
                static_cast<double>(r["bytes_sent"].get<std::size_t>()) / 1000.0,
@@ -610,7 +604,7 @@ void runSwarmProcesses(const SwarmOptions& options, const GlobalOptions& g) {
 
   const SwarmRun run = readSwarm(spec, robots, o.out);
   const std::vector<eval::RobotMetrics> metrics = eval::evaluateRun(run.summary);
-  const Json m = metricsJson(run, metrics, o, swarm, since(start));
+  const Json m = metricsJson(run, metrics, o, swarm, secondsSince(start));
   io::writeFileAtomic(o.out + "/metrics.json",
                       [&](std::ostream& out) { out << m.dump(2) << "\n"; });
   io::writeFileAtomic(o.out + "/report.html",
