@@ -103,7 +103,8 @@ std::unique_ptr<odometry::Odometry> makeOdometry(const OdometryOptions& o, const
   external.format = o.external_format;
   external.topic = o.external_topic;
   external.times = o.external_times;
-  auto odometry = std::make_unique<odometry::ExternalOdometry>(external);
+  auto odometry =
+      std::make_unique<odometry::ExternalOdometry>(readExternalPoses(external), external);
   if (frames > 0) {
     const auto [first, last] = frameTimes(scans, frames);
     odometry->requireOverlap(first, last);
