@@ -26,8 +26,8 @@
 #include <dcl/eval/ate.hpp>
 #include <dcl/io/dataset.hpp>
 #include <dcl/io/file.hpp>
-#include <dcl/io/g2o.hpp>
 #include <dcl/io/pose_file.hpp>
+#include <dcl/io/pose_graph_g2o.hpp>
 
 #include "bound.hpp"
 #include "commands.hpp"
@@ -60,7 +60,7 @@ RobotGraph readRobot(const std::string& run, const io::DatasetSpec& spec, std::s
   const std::string folder = run + "/" + r.name;
   const core::Trajectory keyframes = io::readTumPoses(folder + "/trajectory.tum");
   r.ground_truth = io::readGroundTruth(spec, index);
-  const backend::PoseGraph all = backend::fromG2o(io::readG2o(folder + "/graph.g2o"));
+  const backend::PoseGraph all = io::readPoseGraph(folder + "/graph.g2o");
   for (const auto& [key, T] : all.nodes())
     if (key.robot == r.id) r.graph.addNode(key, T);
   for (const backend::Factor& f : all.factors()) r.graph.addFactor(f);

@@ -21,9 +21,9 @@
 #include <dcl/eval/rpe.hpp>
 #include <dcl/io/dataset.hpp>
 #include <dcl/io/file.hpp>
-#include <dcl/io/g2o.hpp>
 #include <dcl/io/kitti_scan.hpp>
 #include <dcl/io/pose_file.hpp>
+#include <dcl/io/pose_graph_g2o.hpp>
 #include <dcl/odometry/external_odometry.hpp>
 #include <dcl/odometry/lidar_odometry.hpp>
 #include <dcl/odometry/local_mapper.hpp>
@@ -104,7 +104,8 @@ std::unique_ptr<odometry::Odometry> makeOdometry(const OdometryOptions& o, const
   external.format = o.external_format;
   external.topic = o.external_topic;
   external.times = o.external_times;
-  auto odometry = std::make_unique<odometry::ExternalOdometry>(external);
+  auto odometry =
+      std::make_unique<odometry::ExternalOdometry>(readExternalPoses(external), external);
   if (frames > 0) {
     const auto [first, last] = frameTimes(scans, frames);
     odometry->requireOverlap(first, last);
@@ -250,7 +251,7 @@ void writeKeyframes(const std::string& folder, const odometry::LocalMapper& mapp
     }
   }
   io::writeTumPoses(folder + "/poses.tum", poses);
-  io::writeG2o(folder + "/graph.g2o", backend::toG2o(mapper.graph()));
+  io::writePoseGraph(folder + "/graph.g2o", mapper.graph());
 }
 
 void writeOutputs(const OdometryOptions& o, const FrameLog& log,

@@ -14,6 +14,7 @@
 #include <dcl/backend/pcm.hpp>
 #include <dcl/backend/pcm_evaluation.hpp>
 #include <dcl/core/error.hpp>
+#include <dcl/io/multi_robot_graph.hpp>
 
 #include "commands.hpp"
 #include "printing.hpp"
@@ -117,9 +118,9 @@ void runPcmCommand(const PcmOptions& o, backend::PcmConfig config,
   config.threshold = o.threshold;
   if (o.min_loops == 0) throw core::Error("--min-loops must be at least 1");
   config.min_loops = o.min_loops;
-  const backend::PoseGraph graph = backend::readMultiRobotGraph(o.graph, o.skip_unknown_lines);
+  const backend::PoseGraph graph = io::readMultiRobotGraph(o.graph, o.skip_unknown_lines);
   std::optional<std::set<backend::LoopId>> reference;
-  if (!o.reference.empty()) reference = backend::readReferenceLoops(o.reference, graph);
+  if (!o.reference.empty()) reference = io::readReferenceLoops(o.reference, graph);
   const auto start = Clock::now();
   backend::PcmResult result = backend::runPcm(graph, config);
   const std::size_t withdrawn =

@@ -14,11 +14,11 @@
 #include <dcl/backend/centralized_solver.hpp>
 #include <dcl/backend/dgs.hpp>
 #include <dcl/backend/distributed_refine.hpp>
-#include <dcl/backend/pcm_evaluation.hpp>
 #include <dcl/backend/pose_graph.hpp>
 #include <dcl/comm/messages.hpp>
 #include <dcl/core/error.hpp>
-#include <dcl/io/g2o.hpp>
+#include <dcl/io/multi_robot_graph.hpp>
+#include <dcl/io/pose_graph_g2o.hpp>
 #include <dcl/robot/dgs_wire.hpp>
 
 #include "commands.hpp"
@@ -200,7 +200,7 @@ class WireMeter {
 };
 
 backend::PoseGraph readGraph(const PgoOptions& o) {
-  backend::PoseGraph graph = backend::readMultiRobotGraph(o.g2o, o.skip_unknown_lines);
+  backend::PoseGraph graph = io::readMultiRobotGraph(o.g2o, o.skip_unknown_lines);
   if (o.robots < 1) throw core::Error("--robots must be at least 1");
   if (o.robots > 1) {
     if (robotCount(graph) != 1)
@@ -301,7 +301,7 @@ Json runPgo(const PgoOptions& o, const backend::DgsConfig& dgs_config,
     m["cost_ratio_dgs"] =
         costRatio(m["cost_dgs"].get<double>(), ref.final_cost, graph.factors().size());
   }
-  if (!o.out.empty()) io::writeG2o(o.out, backend::toG2o(graph));
+  if (!o.out.empty()) io::writePoseGraph(o.out, graph);
   return m;
 }
 

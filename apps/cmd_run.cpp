@@ -24,9 +24,9 @@
 #include <dcl/eval/run_report.hpp>
 #include <dcl/io/dataset.hpp>
 #include <dcl/io/file.hpp>
-#include <dcl/io/g2o.hpp>
 #include <dcl/io/ply.hpp>
 #include <dcl/io/pose_file.hpp>
+#include <dcl/io/pose_graph_g2o.hpp>
 #include <dcl/sim/sim_source.hpp>
 #include <dcl/swarm/merged_map.hpp>
 #include <dcl/swarm/swarm_progress.hpp>
@@ -275,7 +275,7 @@ void writeOutputs(const std::string& out, const eval::RunSummary& s,
     io::writeTumPoses(folder + "/trajectory.tum", s.robots[r].estimate);
     io::writeKittiPoses(folder + "/trajectory.kitti", s.robots[r].estimate, folder + "/times.txt");
     io::writeTumPoses(folder + "/odometry.tum", s.robots[r].odometry);
-    io::writeG2o(folder + "/graph.g2o", backend::toG2o(result.robots[r].graph));
+    io::writePoseGraph(folder + "/graph.g2o", result.robots[r].graph);
     writeOrClearMap(folder + "/map.ply", maps.robots.empty() ? nullptr : &maps.robots[r]);
   }
   writeOrClearMap(out + "/map.ply", maps.robots.empty() ? nullptr : &maps.merged);

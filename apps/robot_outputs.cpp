@@ -17,8 +17,8 @@
 
 #include <dcl/core/error.hpp>
 #include <dcl/io/file.hpp>
-#include <dcl/io/g2o.hpp>
 #include <dcl/io/pose_file.hpp>
+#include <dcl/io/pose_graph_g2o.hpp>
 
 namespace dcl::apps {
 namespace {
@@ -153,7 +153,7 @@ void writeRobotOutputs(const std::string& folder, const RobotOutputs& o) {
   io::writeTumPoses(folder + "/trajectory.tum", o.estimate);
   io::writeKittiPoses(folder + "/trajectory.kitti", o.estimate, folder + "/times.txt");
   io::writeTumPoses(folder + "/odometry.tum", o.odometry);
-  io::writeG2o(folder + "/graph.g2o", backend::toG2o(o.graph));
+  io::writePoseGraph(folder + "/graph.g2o", o.graph);
   const Json report = toJson(o.report);
   io::writeFileAtomic(folder + "/" + kReportFile,
                       [&](std::ostream& out) { out << report.dump(2) << "\n"; });
@@ -170,7 +170,7 @@ RobotOutputs readRobotOutputs(const std::string& folder) {
   if (o.report.keyframes == 0) return o;  // the pose files have no line to read
   o.estimate = io::readTumPoses(folder + "/trajectory.tum");
   o.odometry = io::readTumPoses(folder + "/odometry.tum");
-  o.graph = backend::fromG2o(io::readG2o(folder + "/graph.g2o"));
+  o.graph = io::readPoseGraph(folder + "/graph.g2o");
   if (o.estimate.size() != o.report.keyframes || o.odometry.size() != o.report.keyframes)
     throw core::FileError({.path = folder + "/trajectory.tum"},
                           "holds " + std::to_string(o.estimate.size()) + " poses, odometry.tum " +

@@ -14,6 +14,7 @@
 #include <dcl/backend/pcm.hpp>
 #include <dcl/backend/pcm_evaluation.hpp>
 #include <dcl/backend/pcm_trajectory.hpp>
+#include <dcl/io/multi_robot_graph.hpp>
 
 namespace {
 
@@ -35,9 +36,8 @@ struct City500 {
 const City500& city500() {
   static const City500 city = [] {
     City500 c;
-    const auto full = dcl::backend::readMultiRobotGraph(outliers("city10000/spilt_part_spoiled"));
-    c.reference =
-        dcl::backend::readReferenceLoops(outliers("city10000/spilt_part/fullgraph.g2o"), full);
+    const auto full = dcl::io::readMultiRobotGraph(outliers("city10000/spilt_part_spoiled"));
+    c.reference = dcl::io::readReferenceLoops(outliers("city10000/spilt_part/fullgraph.g2o"), full);
     std::vector<Factor> inliers;
     for (const Factor& f : full.factors()) {
       if (f.from.robot == f.to.robot) {
@@ -149,7 +149,7 @@ BENCHMARK(BM_HeuristicCliqueCity500)->Unit(benchmark::kMillisecond);
 
 /// CSAIL with 190 random wrong loops among 299.
 void BM_PcmCsail299Loops(benchmark::State& state) {
-  static const auto graph = dcl::backend::readMultiRobotGraph(outliers("CSAIL/spilt_190random"));
+  static const auto graph = dcl::io::readMultiRobotGraph(outliers("CSAIL/spilt_190random"));
   for (auto _ : state) benchmark::DoNotOptimize(dcl::backend::runPcm(graph));
 }
 BENCHMARK(BM_PcmCsail299Loops)->Unit(benchmark::kMillisecond);
@@ -162,13 +162,13 @@ BENCHMARK(BM_PcmCsail299Loops)->Unit(benchmark::kMillisecond);
 // defaults. Target (issue): under 2 s. And the centralized two-stage
 // initialisation of the same graph as one block.
 #include <dcl/backend/dgs.hpp>
-#include <dcl/io/g2o.hpp>
+#include <dcl/io/pose_graph_g2o.hpp>
 
 namespace {
 
 const dcl::backend::PoseGraph& sphere2500() {
-  static const dcl::backend::PoseGraph graph = dcl::backend::fromG2o(
-      dcl::io::readG2o(std::string(DCL_DATA_DIR) + "/pose_graphs/3d/sphere2500.g2o"));
+  static const dcl::backend::PoseGraph graph =
+      dcl::io::readPoseGraph(std::string(DCL_DATA_DIR) + "/pose_graphs/3d/sphere2500.g2o");
   return graph;
 }
 
@@ -222,8 +222,8 @@ BENCHMARK(BM_ChordalSphere2500)->Unit(benchmark::kMillisecond);
 namespace {
 
 const dcl::backend::PoseGraph& sphereForRefinement() {
-  static const dcl::backend::PoseGraph graph = dcl::backend::fromG2o(
-      dcl::io::readG2o(std::string(DCL_DATA_DIR) + "/pose_graphs/3d/sphere2500.g2o"));
+  static const dcl::backend::PoseGraph graph =
+      dcl::io::readPoseGraph(std::string(DCL_DATA_DIR) + "/pose_graphs/3d/sphere2500.g2o");
   return graph;
 }
 

@@ -4,8 +4,8 @@
 // with core::Error (a core::FileError naming the line).
 #include <cstdint>
 
-#include <dcl/backend/pcm_evaluation.hpp>
 #include <dcl/core/error.hpp>
+#include <dcl/io/multi_robot_graph.hpp>
 
 #include "fuzz_input_file.hpp"
 
@@ -13,7 +13,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   static const dcl::fuzz::InputFile file("g2o");
   const std::string& path = file.write(data, size);
   try {
-    (void)dcl::backend::readMultiRobotGraph(path, /*skip_unknown_lines=*/true);
+    (void)dcl::io::readMultiRobotGraph(path, /*skip_unknown_lines=*/true);
   } catch (const dcl::core::Error&) {
   }
   return 0;

@@ -6,10 +6,7 @@
 
 #include <dcl/core/config.hpp>
 #include <dcl/core/error.hpp>
-#include <dcl/io/pose_file.hpp>
-#include <dcl/io/rosbag.hpp>
 #include <dcl/odometry/external_odometry.hpp>
-#include <dcl/ros/ros2_bag.hpp>
 
 namespace dcl::odometry {
 namespace {
@@ -17,12 +14,6 @@ namespace {
 /// Below this distance (m) a step counts as this long in the motion covariance,
 /// so a robot standing still still reports some uncertainty.
 constexpr double kMinCovarianceDistance = 0.1;
-
-std::string formatOf(const ExternalOdometryConfig& config) {
-  if (config.format != "auto") return config.format;
-  if (config.file.ends_with(".mcap")) return "mcap";
-  return config.readsBag() ? "bag" : "tum";
-}
 
 /// T_body_sensor of a validated config.
 Eigen::Isometry3d bodySensorOf(const ExternalOdometryConfig& config) {
@@ -46,23 +37,6 @@ void validate(const ExternalOdometryConfig& config) {
   core::checkConfig(config, "external odometry config");
 }
 
-core::Trajectory loadExternalTrajectory(const ExternalOdometryConfig& config) {
-  validate(config);
-  const std::string format = formatOf(config);
-  if (format == "bag" || format == "mcap") {
-    if (config.topic.empty()) throw core::Error("external odometry: a bag needs a topic");
-    return format == "bag" ? io::readBagTrajectory(config.file, config.topic)
-                           : ros2::readMcapTrajectory(config.file, config.topic);
-  }
-  if (format != "tum" && format != "kitti") {
-    throw core::Error("external odometry: unknown format '" + format +
-                      "' (expected tum, kitti, bag, mcap or auto)");
-  }
-  std::optional<std::string> times;
-  if (!config.times.empty()) times = config.times;
-  return io::readPoses(config.file, io::parsePoseFormat(format), times);
-}
-
 ExternalOdometry::ExternalOdometry(core::Trajectory T_world_body,
                                    const ExternalOdometryConfig& config)
     : T_world_body_(projected(std::move(T_world_body))),
@@ -73,9 +47,6 @@ ExternalOdometry::ExternalOdometry(core::Trajectory T_world_body,
     throw core::Error("external odometry: the trajectory's stamps decrease");
   }
 }
-
-ExternalOdometry::ExternalOdometry(const ExternalOdometryConfig& config)
-    : ExternalOdometry(loadExternalTrajectory(config), config) {}
 
 ExternalOdometry::ExternalOdometry(Streaming, const ExternalOdometryConfig& config)
     : T_body_sensor_(bodySensorOf(config)), config_(config) {}

@@ -7,7 +7,7 @@
 
 #include <dcl/backend/centralized_solver.hpp>
 #include <dcl/core/error.hpp>
-#include <dcl/io/g2o.hpp>
+#include <dcl/io/pose_graph_g2o.hpp>
 
 namespace dcl::backend {
 namespace {
@@ -141,7 +141,7 @@ TEST(CentralizedSolver, RobustLossLimitsAWrongLoop) {
 
 /// Solves a benchmark from its file's initial estimate; returns the summary.
 SolverSummary solveBenchmark(const std::string& file) {
-  PoseGraph graph = fromG2o(io::readG2o(dataPath(file)));
+  PoseGraph graph = io::readPoseGraph(dataPath(file));
   SolverConfig config;
   config.threads = 2;
   return solveCentralized(graph, config);
@@ -168,7 +168,7 @@ TEST(CentralizedSolver, Sphere2500ConvergesFromOdometry) {
 TEST(CentralizedSolver, NoiseFreeSphereSolvesToZeroCost) {
   // TORO EDGE3 lines of noise-free measurements, no vertices: chained by the reader,
   // then perturbed. The optimum is consistent up to the file's 6 printed digits.
-  PoseGraph graph = fromG2o(io::readG2o(dataPath("3d/sphere2500_groundtruth.graph")));
+  PoseGraph graph = io::readPoseGraph(dataPath("3d/sphere2500_groundtruth.graph"));
   perturb(graph, 11);
   const SolverSummary s = solveCentralized(graph);
   EXPECT_GT(s.initial_cost, 1e4);
@@ -176,7 +176,7 @@ TEST(CentralizedSolver, NoiseFreeSphereSolvesToZeroCost) {
 }
 
 TEST(CentralizedSolver, PlanarGraphLiftedTo3dSolvesAndStaysPlanar) {
-  PoseGraph graph = fromG2o(io::readG2o(dataPath("2d/intel.g2o")));
+  PoseGraph graph = io::readPoseGraph(dataPath("2d/intel.g2o"));
   const SolverSummary s = solveCentralized(graph);
   EXPECT_TRUE(s.converged) << s.message;
   EXPECT_LT(s.final_cost, 0.1 * s.initial_cost);

@@ -9,9 +9,9 @@
 
 #include <dcl/backend/centralized_solver.hpp>
 #include <dcl/backend/dgs.hpp>
-#include <dcl/backend/pcm_evaluation.hpp>
 #include <dcl/core/error.hpp>
-#include <dcl/io/g2o.hpp>
+#include <dcl/io/multi_robot_graph.hpp>
+#include <dcl/io/pose_graph_g2o.hpp>
 
 namespace dcl::backend {
 namespace {
@@ -30,11 +30,11 @@ std::string dataPath(const std::string& relative) {
 }
 
 PoseGraph readGraph(const std::string& relative) {
-  return fromG2o(io::readG2o(dataPath(relative)));
+  return io::readPoseGraph(dataPath(relative));
 }
 
 PoseGraph distributedMapper(int robots) {
-  return readMultiRobotGraph(
+  return io::readMultiRobotGraph(
       dataPath("multi_robot/distributed_mapper/example_" + std::to_string(robots) + "robots"));
 }
 

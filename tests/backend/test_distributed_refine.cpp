@@ -13,10 +13,10 @@
 #include <dcl/backend/centralized_solver.hpp>
 #include <dcl/backend/dgs.hpp>
 #include <dcl/backend/distributed_refine.hpp>
-#include <dcl/backend/pcm_evaluation.hpp>
 #include <dcl/backend/refine_coarse.hpp>
 #include <dcl/core/error.hpp>
-#include <dcl/io/g2o.hpp>
+#include <dcl/io/multi_robot_graph.hpp>
+#include <dcl/io/pose_graph_g2o.hpp>
 
 namespace dcl::backend {
 namespace {
@@ -27,12 +27,12 @@ std::string dataPath(const std::string& relative) {
 
 /// A single-robot benchmark of pose_graphs/3d split into `robots` robots.
 PoseGraph splitBenchmark(const std::string& file, int robots) {
-  return splitIntoRobots(fromG2o(io::readG2o(dataPath("3d/" + file))), robots);
+  return splitIntoRobots(io::readPoseGraph(dataPath("3d/" + file)), robots);
 }
 
 /// A distributed-mapper example (robot i's graph in i.g2o).
 PoseGraph mapperExample(int robots) {
-  return readMultiRobotGraph(
+  return io::readMultiRobotGraph(
       dataPath("multi_robot/distributed_mapper/example_" + std::to_string(robots) + "robots"));
 }
 
@@ -191,7 +191,7 @@ TEST(DistributedRefine, DgsThenRefineReachesTheCentralizedOptimum) {
 TEST(DistributedRefine, CoarseStepsPricedBeforeTakenReachManhattansOptimum) {
   // manhattan in 9 robots: every robot's part criss-crosses the whole map, and
   // coarse blocks a round old make the coarse step rise at every length.
-  PoseGraph start = splitIntoRobots(fromG2o(io::readG2o(dataPath("2d/manhattan.g2o"))), 9);
+  PoseGraph start = splitIntoRobots(io::readPoseGraph(dataPath("2d/manhattan.g2o")), 9);
   const double optimum = graphCost(centralizedOptimum(start));
   (void)runDgs(start);
   RefineConfig config;
@@ -256,7 +256,7 @@ TEST(DistributedRefine, CountsEverySeparatorPoseSentEveryRound) {
 }
 
 TEST(DistributedRefine, ASingleRobotEqualsTheCentralizedSolve) {
-  PoseGraph graph = fromG2o(io::readG2o(dataPath("3d/smallGrid3D.g2o")));
+  PoseGraph graph = io::readPoseGraph(dataPath("3d/smallGrid3D.g2o"));
   PoseGraph centralized = graph;
   (void)solveCentralized(centralized);
   const RefineSummary s = refineDistributed(graph);
@@ -283,7 +283,7 @@ TEST(DistributedRefine, ARobotWithoutInterRobotFactorsIsSolvedAlone) {
   // Robots 0 and 1 of a distributed-mapper example, and robot 5: tinyGrid3D, met by no one.
   PoseGraph graph = mapperExample(2);
   const Eigen::Isometry3d T_first = graph.nodes().begin()->second;
-  const PoseGraph alone = asRobot(fromG2o(io::readG2o(dataPath("3d/tinyGrid3D.g2o"))), 5);
+  const PoseGraph alone = asRobot(io::readPoseGraph(dataPath("3d/tinyGrid3D.g2o")), 5);
   for (const auto& [k, T] : alone.nodes()) graph.addNode(k, T);
   for (const Factor& f : alone.factors()) graph.addFactor(f);
   PoseGraph alone_solved = alone;
@@ -533,7 +533,7 @@ TEST(RefineAgent, HeldNeighbourPosesStayPutAndTheirFactorsAreOwned) {
 }
 
 TEST(CentralizedInitialisation, ChordalStartReachesTheSameOptimumFromCloser) {
-  const PoseGraph start = fromG2o(io::readG2o(dataPath("3d/smallGrid3D.g2o")));
+  const PoseGraph start = io::readPoseGraph(dataPath("3d/smallGrid3D.g2o"));
   PoseGraph as_is = start;
   PoseGraph chordal = start;
   const SolverSummary a = solveCentralized(as_is);
@@ -634,7 +634,7 @@ PoseGraph moved(PoseGraph graph, const std::map<core::RobotId, RefineAgent>& age
 }
 
 TEST(CoarseShare, GradientIsTheGraphCostsDerivativeAlongACoarseMotion) {
-  PoseGraph graph = splitIntoRobots(fromG2o(io::readG2o(dataPath("3d/smallGrid3D.g2o"))), 3);
+  PoseGraph graph = splitIntoRobots(io::readPoseGraph(dataPath("3d/smallGrid3D.g2o")), 3);
   const auto agents = makeAgents(graph, {});
   std::map<CoarseNode, core::Vector6d> gradient;
   for (const auto& [robot, agent] : agents) {

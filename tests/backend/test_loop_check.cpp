@@ -11,6 +11,7 @@
 #include <dcl/backend/loop_check.hpp>
 #include <dcl/backend/pcm.hpp>
 #include <dcl/backend/pcm_evaluation.hpp>
+#include <dcl/io/multi_robot_graph.hpp>
 
 namespace dcl::backend {
 namespace {
@@ -173,8 +174,8 @@ class LoopCheckOnRealGraphs : public ::testing::TestWithParam<RealGraph> {};
 
 TEST_P(LoopCheckOnRealGraphs, KeepsEveryTrueLoopPcmKept) {
   const std::string root = std::string(DCL_DATA_DIR) + "/pose_graphs/multi_robot_outliers/";
-  const PoseGraph graph = readMultiRobotGraph(root + GetParam().graph);
-  const std::set<LoopId> reference = readReferenceLoops(root + GetParam().reference, graph);
+  const PoseGraph graph = io::readMultiRobotGraph(root + GetParam().graph);
+  const std::set<LoopId> reference = io::readReferenceLoops(root + GetParam().reference, graph);
   PcmConfig published;
   published.min_loops = 1;
   PcmResult result = runPcm(graph, published);

@@ -6,7 +6,7 @@
 #include <dcl/backend/centralized_solver.hpp>
 #include <dcl/backend/pose_graph.hpp>
 #include <dcl/core/se3.hpp>
-#include <dcl/io/g2o.hpp>
+#include <dcl/io/pose_graph_g2o.hpp>
 
 #include "../../src/backend/pose_block_solver.hpp"
 
@@ -18,7 +18,7 @@ using detail::BlockSolveSummary;
 using detail::PoseBlockSolver;
 
 PoseGraph benchmark(const std::string& file) {
-  return fromG2o(io::readG2o(std::string(DCL_DATA_DIR) + "/pose_graphs/3d/" + file));
+  return io::readPoseGraph(std::string(DCL_DATA_DIR) + "/pose_graphs/3d/" + file);
 }
 
 /// A solver over the whole graph, its lowest node held (the centralized solver's gauge).

@@ -1,19 +1,18 @@
-// External odometry: recorded poses from real TUM, KITTI and ROS1-bag files,
-// replayed at scan times, in the odometry frame of the first frame.
+// External odometry: recorded poses from real TUM, KITTI and ROS1-bag files
+// (read by io::readExternalOdometry), replayed at scan times, in the odometry
+// frame of the first frame.
 
 #include <cmath>
-#include <filesystem>
 #include <limits>
 #include <string>
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <dcl/core/error.hpp>
+#include <dcl/io/external_odometry.hpp>
 #include <dcl/io/pose_file.hpp>
 #include <dcl/io/rosbag.hpp>
 #include <dcl/odometry/external_odometry.hpp>
-#include <dcl/ros/ros2_bag.hpp>
 
 namespace dcl::odometry {
 namespace {
@@ -33,6 +32,12 @@ double poseError(const Eigen::Isometry3d& a, const Eigen::Isometry3d& b) {
   return core::logSE3(a.inverse() * b).norm();
 }
 
+/// The poses `config` names, as the application reads them.
+core::Trajectory recorded(const ExternalOdometryConfig& config) {
+  return io::readExternalOdometry(
+      config.file, {.format = config.format, .times = config.times, .topic = config.topic});
+}
+
 ExternalOdometryConfig kittiConfig() {
   ExternalOdometryConfig config;
   config.file = data("trajectories/evo/KITTI_00_gt.txt");
@@ -48,7 +53,7 @@ TEST(ExternalOdometry, KittiCameraPosesBecomeLidarOdometryWithTheCalibration) {
   const Eigen::Isometry3d Tr =
       io::readKittiCalib(data("lidar_scans/kitti_00/calib.txt")).T_cam_velo;
   config.T_body_sensor = asVector(Tr);
-  ExternalOdometry odometry(config);
+  ExternalOdometry odometry(recorded(config), config);
   const core::Trajectory gt = io::readPoses(config.file, io::PoseFormat::kitti, config.times);
   for (std::size_t i = 0; i < 300; i += 7) {
     const OdometryResult r = odometry.process(gt.stamp(i), {});
@@ -171,7 +176,7 @@ TEST(ExternalOdometry, ReadsPoseStampedFromARealBag) {
   ExternalOdometryConfig config;
   config.file = data("rosbags/evo_ROS_example.bag");  // format "auto": by the .bag extension
   config.topic = "/groundtruth";
-  ExternalOdometry odometry(config);
+  ExternalOdometry odometry(recorded(config), config);
   const core::Trajectory bag = io::readBagTrajectory(config.file, config.topic);
   ASSERT_EQ(bag.size(), 12765u);
   const OdometryResult r0 = odometry.process(bag.stamp(0), {});
@@ -184,47 +189,13 @@ TEST(ExternalOdometry, ReadsPoseStampedFromARealBag) {
   EXPECT_LT(((bag.pose(0) * r.T_odom_sensor).translation() - expected).norm(), 1e-9);
 }
 
-TEST(ExternalOdometry, ReadsOdometryAndPoseStampedFromAnMcapBag) {
-  // The real bag's poses written as a ROS 2 bag, read back by extension and by format.
-  const core::Trajectory bag =
-      io::readBagTrajectory(data("rosbags/evo_ROS_example.bag"), "/groundtruth");
-  const std::string mcap = (std::filesystem::path(::testing::TempDir()) /
-                            ("external_" + std::to_string(::getpid()) + ".mcap"))
-                               .string();
-  ros2::McapBagWriter writer(mcap);
-  for (std::size_t i = 0; i < 200; ++i) {
-    writer.writeOdometry("/odom", bag.stamp(i), bag.pose(i), "world", "base_link");
-    writer.writePose("/pose", bag.stamp(i), bag.pose(i), "world");
-  }
-  writer.close();
-  for (const char* topic : {"/odom", "pose"}) {
-    SCOPED_TRACE(topic);
-    ExternalOdometryConfig config;
-    config.file = mcap;  // format "auto": by the .mcap extension
-    config.topic = topic;
-    const core::Trajectory read = loadExternalTrajectory(config);
-    ASSERT_EQ(read.size(), 200u);
-    EXPECT_NEAR(read.stamp(150), bag.stamp(150), 1e-9);
-    EXPECT_LT(poseError(read.pose(150), bag.pose(150)), 1e-9);
-    config.file = mcap + ".renamed";
-    std::filesystem::copy_file(mcap, config.file,
-                               std::filesystem::copy_options::overwrite_existing);
-    config.format = "mcap";
-    EXPECT_EQ(loadExternalTrajectory(config).size(), 200u);
-    std::filesystem::remove(config.file);
-  }
-  std::filesystem::remove(mcap);
-}
-
 TEST(ExternalOdometry, RejectsUnusableSources) {
+  // (Unreadable files: io's ExternalOdometryFile tests.)
   ExternalOdometryConfig config;
   config.file = data("rosbags/evo_ROS_example.bag");
-  EXPECT_THROW(ExternalOdometry{config}, core::Error);  // a bag needs a topic
+  EXPECT_THROW(validate(config), core::Error);  // a bag needs a topic
   config.format = "csv";
-  EXPECT_THROW(ExternalOdometry{config}, core::Error);
-  config.format = "tum";
-  config.file = data("no_such_file.txt");
-  EXPECT_THROW(ExternalOdometry{config}, core::FileError);
+  EXPECT_THROW(validate(config), core::Error);
   EXPECT_THROW(ExternalOdometry{core::Trajectory{}}, core::Error);
   config = {};
   config.T_body_sensor << 0, 0, 0, 0, 0, 0, 0;  // not a rotation

@@ -12,7 +12,7 @@
 #include <dcl/backend/dgs.hpp>
 #include <dcl/backend/pose_graph.hpp>
 #include <dcl/comm/messages.hpp>
-#include <dcl/io/g2o.hpp>
+#include <dcl/io/pose_graph_g2o.hpp>
 #include <dcl/robot/dgs_wire.hpp>
 
 namespace dcl::robot {
@@ -82,7 +82,7 @@ WireRun dgsOverTheWire(backend::PoseGraph graph) {
 
 backend::PoseGraph split(const std::string& file, int robots) {
   return backend::splitIntoRobots(
-      backend::fromG2o(io::readG2o(std::string(DCL_DATA_DIR) + "/pose_graphs/3d/" + file)), robots);
+      io::readPoseGraph(std::string(DCL_DATA_DIR) + "/pose_graphs/3d/" + file), robots);
 }
 
 class DgsOverTheWire : public ::testing::TestWithParam<std::pair<const char*, int>> {};

@@ -10,6 +10,9 @@
 /// information matrix over the tangent [rho; phi] (g2o's EDGE_SE3:QUAT order).
 /// Its residual is r = log(T_from_to^-1 T_world_from^-1 T_world_to) and its cost
 /// r^T Omega r, g2o's chi-square convention, so costs compare with published ones.
+///
+/// A graph is built in code or from a file by io (io/pose_graph_g2o.hpp); the
+/// back-end reads no file.
 
 #include <Eigen/Geometry>
 #include <cstddef>
@@ -20,10 +23,6 @@
 
 #include <dcl/core/ids.hpp>
 #include <dcl/core/se3.hpp>
-
-namespace dcl::io {
-struct G2oGraph;
-}
 
 namespace dcl::backend {
 
@@ -118,26 +117,5 @@ double graphCost(const PoseGraph& graph);
 /// slightly indefinite covariance gives a finite, positive-definite information.
 core::Matrix6d informationFromCovariance(const core::Matrix6d& covariance,
                                          double min_variance = 1e-9);
-
-/// How g2o vertex ids map to pose keys when converting.
-enum class VertexIds {
-  automatic,  ///< to g2o: plain keyframe indices when every node is robot 0, else symbols
-  plain,      ///< to g2o: the keyframe index (throws core::Error for a graph of several robots)
-  symbols,    ///< to g2o: GTSAM symbols (core::PoseKey::pack)
-};
-
-/// The key of a g2o vertex id: a GTSAM symbol names its robot and keyframe, a
-/// plain integer is robot 0's keyframe.
-core::PoseKey keyOfVertex(std::uint64_t id);
-
-/// A pose graph from a g2o / TORO graph read by io::readG2o. Vertex ids that
-/// are GTSAM symbols become their robot and keyframe, plain ids robot 0 and
-/// keyframe id. Factor kinds: ends of different robots give inter_loop,
-/// consecutive keyframes of one robot odometry, others intra_loop. `FIX` lines
-/// become fixed nodes; TORO `EQUIV` lines are ignored.
-PoseGraph fromG2o(const io::G2oGraph& g2o);
-
-/// The graph as an io::G2oGraph (3D), for io::writeG2o; vertex ids as `ids` says.
-io::G2oGraph toG2o(const PoseGraph& graph, VertexIds ids = VertexIds::automatic);
 
 }  // namespace dcl::backend

@@ -57,9 +57,9 @@ struct ScanSourceSpec {
 /// The poses of a robot's own front-end (LIO-SAM, FAST-LIO2, wheel and IMU
 /// odometry, ...), in a pose file or a ROS 1 or ROS 2 (MCAP) bag topic, taken instead of the
 /// built-in LiDAR odometry, the scans then serving keyframe clouds, descriptors and verification
-/// only. The poses are T_world_body on the scans' clock, read as odometry::ExternalOdometryConfig
-/// reads them (the configuration's `external` section gives T_body_sensor and
-/// the noise model).
+/// only. The poses are T_world_body on the scans' clock, read by readExternalOdometry
+/// (external_odometry.hpp) and replayed by odometry::ExternalOdometry (the configuration's
+/// `external` section gives T_body_sensor and the noise model).
 struct FrontEndSpec {
   std::string file{};           ///< TUM or KITTI poses, or a bag (relative); "" when none
   std::string format = "auto";  ///< tum | kitti | bag | mcap | auto (by extension, else tum)

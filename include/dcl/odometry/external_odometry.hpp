@@ -2,8 +2,10 @@
 
 /// Odometry from another front-end (paper §III-A: the framework is front-end
 /// agnostic): poses recorded by LIO-SAM, FAST-LIO2, a ground-truth system or
-/// any other source, in a TUM or KITTI file or a topic of a ROS1 bag or a ROS 2
-/// bag in MCAP (nav_msgs/Odometry, geometry_msgs/PoseStamped), replayed at the scan times.
+/// any other source, replayed at the scan times, or streamed in as a live
+/// front-end publishes them. The recorded poses are given as a trajectory
+/// (io::readExternalOdometry reads them from a TUM or KITTI file or a topic of
+/// a ROS1 bag or a ROS 2 bag in MCAP); this module reads no file.
 ///
 /// The source gives T_world_body at its own stamps. For a scan at `stamp` the
 /// pose is interpolated there (core::Trajectory::at), moved to the LiDAR by a
@@ -25,7 +27,8 @@
 
 namespace dcl::odometry {
 
-/// Where the external poses come from and how they are used.
+/// Where the external poses come from (the application reads them:
+/// io::readExternalOdometry) and how they are used.
 struct ExternalOdometryConfig {
   /// How far the norm of T_body_sensor's quaternion may be from 1 (values written to a few digits).
   static constexpr double kQuaternionTolerance = 1e-2;
@@ -76,11 +79,6 @@ struct ExternalOdometryConfig {
 /// Throws core::Error naming the first field that breaks its rule (visit()).
 void validate(const ExternalOdometryConfig& config);
 
-/// Reads the trajectory `config` names (TUM or KITTI file via the io readers, a
-/// ROS1 bag topic, or an MCAP topic via dcl::ros). Throws core::FileError naming the file when it
-/// cannot be read, and core::Error for an unknown format or a bag without a topic.
-core::Trajectory loadExternalTrajectory(const ExternalOdometryConfig& config);
-
 /// Replays recorded poses as an Odometry.
 class ExternalOdometry final : public Odometry {
  public:
@@ -88,9 +86,6 @@ class ExternalOdometry final : public Odometry {
   /// KITTI files print 7 digits). Throws core::Error when it is empty or unsorted.
   explicit ExternalOdometry(core::Trajectory T_world_body,
                             const ExternalOdometryConfig& config = {});
-
-  /// Loads the trajectory `config.file` names (loadExternalTrajectory).
-  explicit ExternalOdometry(const ExternalOdometryConfig& config);
 
   /// An odometry fed while it runs (a live front-end's messages, append()),
   /// with no pose yet.
