@@ -5,7 +5,8 @@
 // dataset. It never skips a scan: a process that falls behind catches up as
 // fast as it can and reports how late it got. After its last scan it lingers
 // so that the exchanges and optimisation rounds under way with its peers can
-// finish, and on while it still optimises with them (--settle), then writes the outputs `dcl-slam
+// finish, and on while its peers still map or it still optimises with them
+// (--settle at most), then writes the outputs `dcl-slam
 // run` writes per robot, and robot.json (robot_outputs.hpp).
 #include <algorithm>
 #include <cctype>
@@ -325,7 +326,10 @@ struct RobotPlayer {
         continue;
       }
       if (next == frames && !std::isfinite(end)) end = now + o.linger;
-      if (now >= end && (node.settled() || now >= end + o.settle)) break;
+      // Lingering: on while a peer still maps (its places may yet match this
+      // robot's) or a round is due, for --settle s more at most.
+      const bool peers_done = now >= node.peersMappedAt() + o.linger;
+      if (now >= end && ((peers_done && node.settled()) || now >= end + o.settle)) break;
       tick();
       if (progress.enabled()) progress.update(next, note());
       sleep(next < frames ? std::min(due(next), end) : std::max(end, now));
@@ -861,8 +865,9 @@ void addRobotCommand(CLI::App& app, const AppConfig& config) {
                   "optimisation rounds finish)")
       ->capture_default_str();
   cmd->add_option("--settle", o->settle,
-                  "s of swarm time at most to keep running after --linger while rounds with "
-                  "peers go on (their last loops and unconverged rounds); live: s after Ctrl-C")
+                  "s of swarm time at most to keep running after --linger while peers still map "
+                  "(--linger s after a peer's last keyframe) or rounds with them go on (their "
+                  "last loops and unconverged rounds); live: s after Ctrl-C")
       ->capture_default_str();
   cmd->add_option("--max-frames", o->max_frames, "scans to play at most (0: all)")
       ->check(kNonNegative)

@@ -82,6 +82,12 @@ void RobotNode::Impl::tick(double time) {
 
 void RobotNode::Impl::handle(const Message& m) {
   const core::RobotId from = m.header.sender;
+  if (const auto* h = std::get_if<comm::Heartbeat>(&m.body)) {
+    const auto [it, first] = announced_keyframes.try_emplace(from, h->keyframes);
+    if (!first && h->keyframes > it->second) peers_mapped_at = now;
+    it->second = h->keyframes;  // a restarted robot counts from 0 again
+    return;
+  }
   if (const auto* d = std::get_if<comm::DescriptorMessage>(&m.body)) return onDescriptor(from, *d);
   if (const auto* c = std::get_if<comm::LoopCandidate>(&m.body)) return onCandidate(from, *c);
   if (const auto* l = std::get_if<comm::LoopMeasurement>(&m.body)) return onMeasurement(from, *l);
@@ -172,6 +178,10 @@ bool RobotNode::settled() const {
     return !i.config.solve_alone || i.anchors.empty() ||
            i.mapper.loops().size() == i.solved_own_loops;
   return i.signature(members) == i.last_signature;
+}
+
+double RobotNode::peersMappedAt() const {
+  return impl_->peers_mapped_at;
 }
 
 const std::map<std::string, double>& RobotNode::counters() const {

@@ -138,6 +138,10 @@ struct RobotNode::Impl {
   std::vector<backend::Factor> own_chain;  ///< odometry steps as the neighbours read them
   std::map<std::string, double> counters;
   double now = 0.0;
+  /// The keyframe count each robot heard announced last (heartbeats), and
+  /// when one last grew (peersMappedAt).
+  std::map<core::RobotId, std::uint32_t> announced_keyframes;
+  double peers_mapped_at = detail::kNever;
   // Optimisation rounds.
   std::map<core::RobotId, detail::Link> links;
   std::optional<detail::Round> round;

@@ -299,7 +299,7 @@ class Ros2Robot(unittest.TestCase):
         # `play` process over ROS 2 on the swarm clock with the dataset's stamps.
         out = os.path.join(self.tmp.name, "two")
         _, stdout, _ = run("swarm", "--ros2", "--dataset", self.dataset, "--out", out,
-                           "--rate", "2", "--linger", "4", "--ros-domain", "179",
+                           "--rate", "1", "--linger", "4", "--ros-domain", "179",
                            "--domain", "180", "--json")
         live = json.loads(stdout)
         self.assertEqual(live["scans"], "ros2")

@@ -634,6 +634,24 @@ TEST(RobotNode, CountsEveryStageOfTheExchange) {
   EXPECT_EQ(heard_back, answered);
 }
 
+TEST(RobotNode, TellsWhenAPeerLastMapped) {
+  // Robot a learns from b's heartbeats (one a second) when b last added a
+  // keyframe: again and again while b plays its scans, and not after b's last
+  // keyframe, though they stay in range for the drain after it.
+  std::vector<double> heard;
+  const SwarmRun run =
+      drive(convoy(), {}, 10.0, {}, std::numeric_limits<std::size_t>::max(), {}, {}, {},
+            [&heard](SwarmRun& r) { heard.push_back(r.nodes[0]->peersMappedAt()); });
+  ASSERT_FALSE(heard.empty());
+  std::set<double> distinct(heard.begin(), heard.end());
+  distinct.erase(-std::numeric_limits<double>::infinity());
+  const std::vector<core::Keyframe>& b = run.nodes[1]->keyframes();
+  EXPECT_GT(distinct.size(), b.size() / 3);
+  EXPECT_TRUE(std::is_sorted(heard.begin(), heard.end()));
+  EXPECT_GE(heard.back(), b.back().stamp);
+  EXPECT_LE(heard.back(), b.back().stamp + 1.5);
+}
+
 TEST(RobotNode, WorksAloneOutOfRangeAndSendsNothingItCannot) {
   comm::SimRadioConfig far;
   far.range = 1.0;  // the robots drive about 5 m apart: never within range
@@ -642,6 +660,7 @@ TEST(RobotNode, WorksAloneOutOfRangeAndSendsNothingItCannot) {
     EXPECT_GT(node->keyframes().size(), 5u);
     EXPECT_TRUE(node->interLoops().empty());
     EXPECT_FALSE(node->counters().contains("descriptors_received"));
+    EXPECT_EQ(node->peersMappedAt(), -std::numeric_limits<double>::infinity());
   }
 }
 

@@ -221,6 +221,12 @@ class RobotNode {
   /// played to its end leaves its robots running until they all are.
   [[nodiscard]] bool settled() const;
 
+  /// When (tick time) a robot heard last announced more keyframes in its
+  /// heartbeat than before: a teammate still mapping, whose places this robot
+  /// can still match. kNever (-infinity) if none has grown since it was heard
+  /// first. A robot done with its own data lingers while its peers map.
+  [[nodiscard]] double peersMappedAt() const;
+
   /// Every decision counted, by name (see the class comment).
   [[nodiscard]] const std::map<std::string, double>& counters() const;
   [[nodiscard]] const comm::Messenger& messenger() const;
