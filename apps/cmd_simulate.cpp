@@ -52,6 +52,7 @@ struct SimulateOptions {
   bool no_noise = false;               ///< scans without range noise and dropout
   bool perfect_lasers = false;         ///< every robot's lasers exactly on the published table
   std::vector<double> odometry_drift;  ///< % and deg/m: a drifting external front-end per robot
+  double traffic = 0.0;                ///< moving actors, times the world's own traffic
   bool force = false;                  ///< replace --out even when it holds other files
 };
 
@@ -92,6 +93,8 @@ void printSummary(const sim::Preset& preset, const io::DatasetSpec& spec, const 
   fmt::print("dataset '{}' ({}): {} world, seed {}, {} at {:.2f} m\n", spec.name,
              preset.description, preset.world, preset.seed, spec.sensor, spec.mount_height);
   fmt::print("  lasers: {}\n", lasersOf(*spec.sim));
+  if (spec.sim->traffic > 0.0)
+    fmt::print("  traffic: {} times the {} world's own\n", spec.sim->traffic, preset.world);
   fmt::print("  {:<6} {:>8} {:>10} {:>10} {:>8}\n", "robot", "scans", "length m", "duration s",
              "sensor");
   std::size_t scans = 0;
@@ -166,7 +169,8 @@ void runSimulate(const SimulateOptions& o) {
   io::DatasetSpec spec = sim::writeSimDataset(out.path(), preset,
                                               {.motion_distortion = !o.no_motion_distortion,
                                                .noise = !o.no_noise,
-                                               .calibration_error = !o.perfect_lasers});
+                                               .calibration_error = !o.perfect_lasers,
+                                               .traffic = o.traffic});
   if (!o.odometry_drift.empty()) spec = addDriftingOdometry(out.path(), spec, o);
   printSummary(preset, spec, out.path(), out.out());
   if (format) exportScans(spec, out.path(), out.out(), *format);
@@ -180,12 +184,21 @@ void runPreview(const std::string& folder) {
   const std::string scan_png = (fs::path(folder) / "preview_scan.png").string();
   std::vector<core::Trajectory> routes;
   for (std::size_t r = 0; r < world.robots(); ++r) routes.push_back(world.groundTruth(r));
-  sim::writeWorldPreview(world.world(), routes, world_png);
+  sim::writeWorldPreview(world.world(), routes, world_png, {}, &world.simulator().traffic());
   const core::Trajectory& gt = world.groundTruth(0);
   const std::size_t middle = gt.size() / 2;
   sim::writeScanPreview(world.scan(0, middle), scan_png);
-  fmt::print("wrote {} ({} triangles, {} routes) and {} (robot {} scan {})\n", world_png,
-             world.world().triangleCount(), routes.size(), scan_png, spec.robots[0].name, middle);
+  const sim::Traffic& traffic = world.simulator().traffic();
+  fmt::print("wrote {} ({} triangles, {} routes{}) and {} (robot {} scan {})\n", world_png,
+             world.world().triangleCount(), routes.size(),
+             traffic.empty() ? std::string()
+                             : fmt::format(", {} cars, {} cyclists, {} pedestrians, {} parked "
+                                           "for a while",
+                                           traffic.count(sim::ActorKind::car),
+                                           traffic.count(sim::ActorKind::cyclist),
+                                           traffic.count(sim::ActorKind::pedestrian),
+                                           traffic.count(sim::ActorKind::parked_car)),
+             scan_png, spec.robots[0].name, middle);
 }
 
 void runSimulateCommand(const SimulateOptions& o) {
@@ -321,6 +334,11 @@ void addSimulateCommand(CLI::App& app) {
       ->delimiter(',')
       ->expected(2)
       ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--traffic", o->traffic,
+                  "moving cars, cyclists and pedestrians, and cars parked for a while: this "
+                  "times the world's own traffic (1: a KITTI-like city street; 0: none)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, io::kMaxTraffic));
   addForceFlag(*cmd, o->force);
   cmd->callback([o] { runSimulateCommand(*o); });
 }

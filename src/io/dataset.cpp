@@ -162,6 +162,14 @@ SimSpec readSim(MapReader sim) {
     out.calibration_error = sim.boolean("calibration_error", *n);
   }
   if (auto n = sim.optional("shared_unit")) out.shared_unit = sim.boolean("shared_unit", *n);
+  if (auto n = sim.optional("traffic")) {
+    out.traffic = sim.number("traffic", *n);
+    if (!(out.traffic >= 0.0 && out.traffic <= kMaxTraffic)) {
+      sim.fail(n->Mark(), sim.keyOf("traffic"),
+               fmt::format("{} is outside [0, {}] (times the world's own traffic)", out.traffic,
+                           kMaxTraffic));
+    }
+  }
   sim.finish();
   return out;
 }
@@ -354,6 +362,10 @@ void writeSim(std::ostream& out, const SimSpec& sim) {
       << "  # with noise: each robot's lasers off the published table\n";
   out << "  shared_unit: " << (sim.shared_unit ? "true" : "false")
       << "  # with calibration_error: every robot carries the first robot's unit\n";
+  if (sim.traffic > 0.0) {
+    out << "  traffic: " << fmt::format("{}", sim.traffic)
+        << "  # moving actors, times the world's own traffic\n";
+  }
 }
 
 void writeRobot(std::ostream& out, const RobotSpec& robot) {

@@ -20,6 +20,9 @@ struct Raster {
   [[nodiscard]] Eigen::Vector2d toPixel(const Eigen::Vector2d& xy) const {
     return {(xy.x() - min.x()) / mpp, height - (xy.y() - min.y()) / mpp};
   }
+  [[nodiscard]] Eigen::Vector2d toWorld(const Eigen::Vector2d& pixel) const {
+    return {min.x() + pixel.x() * mpp, min.y() + (height - pixel.y()) * mpp};
+  }
 };
 
 io::Rgb scaled(io::Rgb c, double f) {
@@ -173,6 +176,44 @@ void drawRoutes(io::Image& image, const Raster& raster, std::span<const core::Tr
   }
 }
 
+/// Every actor of `traffic` where it is halfway through the traffic's time
+/// span: its footprint filled, outlined in white.
+void drawTraffic(io::Image& image, const Raster& raster, const Traffic& traffic) {
+  double t0 = std::numeric_limits<double>::infinity(), t1 = -t0;
+  for (const Actor& a : traffic.actors) {
+    if (a.poses.empty()) continue;
+    t0 = std::min(t0, a.start);
+    t1 = std::max(t1, a.end());
+  }
+  const double t = (t0 + t1) / 2;
+  for (const Actor& a : traffic.actors) {
+    const auto pose = a.at(t);
+    if (!pose) continue;
+    Eigen::Vector2d half = Eigen::Vector2d::Zero();
+    for (const ActorBox& b : a.boxes)
+      half = half.cwiseMax((b.centre.head<2>().cwiseAbs() + b.half.head<2>()).cast<double>());
+    const Eigen::Vector2d centre(pose->x, pose->y);
+    const Eigen::Vector2d along(std::cos(pose->yaw), std::sin(pose->yaw));
+    const Eigen::Vector2d left(-along.y(), along.x());
+    // At least two pixels across, so that a pedestrian shows at coarse scales.
+    const double ha = std::max(half.x(), raster.mpp), hb = std::max(half.y(), raster.mpp);
+    const double outline = raster.mpp;
+    const io::Rgb fill =
+        a.kind == ActorKind::parked_car ? io::Rgb{150, 190, 250} : surfaceColour(a.surface);
+    const Eigen::Vector2d reach = Eigen::Vector2d::Constant((ha + hb + outline) / raster.mpp);
+    const Eigen::Vector2d lo = raster.toPixel(centre) - reach;
+    const Eigen::Vector2d hi = raster.toPixel(centre) + reach;
+    for (int y = static_cast<int>(lo.y()); y <= static_cast<int>(hi.y()); ++y) {
+      for (int x = static_cast<int>(lo.x()); x <= static_cast<int>(hi.x()); ++x) {
+        const Eigen::Vector2d d = raster.toWorld({x + 0.5, y + 0.5}) - centre;
+        const double u = std::abs(d.dot(along)), v = std::abs(d.dot(left));
+        if (u > ha + outline || v > hb + outline) continue;
+        image.set(x, y, u > ha || v > hb ? io::Rgb{255, 255, 255} : fill);
+      }
+    }
+  }
+}
+
 }  // namespace
 
 io::Rgb surfaceColour(Surface surface) {
@@ -195,6 +236,8 @@ io::Rgb surfaceColour(Surface surface) {
       return {60, 110, 225};
     case Surface::wall:
       return {160, 155, 180};
+    case Surface::person:
+      return {240, 60, 200};
   }
   return {255, 0, 255};
 }
@@ -205,11 +248,12 @@ io::Rgb routeColour(std::size_t index) {
 }
 
 io::Image renderWorldPreview(const World& world, std::span<const core::Trajectory> routes,
-                             const PreviewOptions& options) {
+                             const PreviewOptions& options, const Traffic* traffic) {
   const Raster raster = worldRaster(world, routes, options);
   io::Image image(raster.width, raster.height, {250, 250, 250});
   paintTopView(image, topView(world, raster), world);
   drawRoutes(image, raster, routes, options);
+  if (traffic != nullptr) drawTraffic(image, raster, *traffic);
   return image;
 }
 
@@ -242,8 +286,9 @@ io::Image renderScanPreview(const core::PointCloud& scan, const PreviewOptions& 
 }
 
 void writeWorldPreview(const World& world, std::span<const core::Trajectory> routes,
-                       const std::string& png_path, const PreviewOptions& options) {
-  io::writePng(png_path, renderWorldPreview(world, routes, options));
+                       const std::string& png_path, const PreviewOptions& options,
+                       const Traffic* traffic) {
+  io::writePng(png_path, renderWorldPreview(world, routes, options, traffic));
 }
 
 void writeScanPreview(const core::PointCloud& scan, const std::string& png_path,

@@ -157,6 +157,63 @@ bool meetsBox(const Eigen::AlignedBox3d& box, const Eigen::Vector3d& direction, 
   return near <= far;
 }
 
+/// A moving actor where it is while one block of columns fires.
+struct PlacedActor {
+  const Actor* actor = nullptr;
+  Eigen::Vector3f position = Eigen::Vector3f::Zero();  ///< origin, world frame
+  float cos_yaw = 1.0f, sin_yaw = 0.0f;
+};
+
+/// Meets `ray` with the actors' boxes: shortens `hit` to the nearest box face
+/// the beam enters before it, with the actor's surface. A beam starting
+/// inside a box does not see that box.
+void meetActors(std::span<const PlacedActor> actors, const Ray& ray, float max_range, RayHit& hit) {
+  const Eigen::Vector2f dxy = ray.direction.head<2>();
+  const float dxy2 = dxy.squaredNorm();
+  for (const PlacedActor& placed : actors) {
+    const Eigen::Vector3f w = placed.position - ray.origin;
+    const float r = placed.actor->radius;
+    // Cull on the ground plane: the beam's line must pass within the actor's radius.
+    const float along = w.x() * dxy.x() + w.y() * dxy.y();
+    if (dxy2 < 1e-8f) {
+      if (w.head<2>().squaredNorm() > r * r) continue;
+    } else {
+      const float across = w.x() * dxy.y() - w.y() * dxy.x();
+      if (across * across > r * r * dxy2 || along < -r * std::sqrt(dxy2)) continue;
+    }
+    // The beam in the actor's frame.
+    const float c = placed.cos_yaw, s = placed.sin_yaw;
+    const Eigen::Vector3f o(-(c * w.x() + s * w.y()), -(-s * w.x() + c * w.y()), -w.z());
+    const Eigen::Vector3f d(c * ray.direction.x() + s * ray.direction.y(),
+                            -s * ray.direction.x() + c * ray.direction.y(), ray.direction.z());
+    for (const ActorBox& box : placed.actor->boxes) {
+      float near = 0.0f, far = hit.hit() ? hit.range : max_range;
+      int axis_in = -1;
+      bool miss = false;
+      for (int axis = 0; axis < 3 && !miss; ++axis) {
+        const float lo = box.centre[axis] - box.half[axis] - o[axis];
+        const float hi = box.centre[axis] + box.half[axis] - o[axis];
+        if (std::abs(d[axis]) < 1e-9f) {
+          miss = lo > 0.0f || hi < 0.0f;
+          continue;
+        }
+        float t1 = lo / d[axis], t2 = hi / d[axis];
+        if (t1 > t2) std::swap(t1, t2);
+        if (t1 > near) {
+          near = t1;
+          axis_in = axis;
+        }
+        far = std::min(far, t2);
+        miss = near > far;
+      }
+      if (miss || axis_in < 0) continue;  // missed, or starts inside the box
+      hit.range = near;
+      hit.cos_incidence = std::abs(d[axis_in]);
+      hit.surface = placed.actor->surface;
+    }
+  }
+}
+
 /// Marks the beams the vehicle's body hides (none without a body).
 std::vector<std::uint8_t> blockedBeams(const LidarModel& model,
                                        std::span<const Eigen::Vector3f> directions) {
@@ -209,16 +266,30 @@ struct ScanSimulator::Impl {
   LidarModel model;
   ScanOptions options;
   BeamTable beams;
+  Traffic traffic;
 
-  Impl(const World& world, LidarModel m, ScanOptions o)
-      : caster(world), model(std::move(m)), options(o), beams(makeBeamTable(model)) {}
+  Impl(const World& world, LidarModel m, ScanOptions o, Traffic t)
+      : caster(world),
+        model(std::move(m)),
+        options(o),
+        beams(makeBeamTable(model)),
+        traffic(std::move(t)) {}
+
+  /// The actors alive during the sweep from `stamp` that may come within
+  /// the sensor's range.
+  [[nodiscard]] std::vector<const Actor*> actorsNear(const Eigen::Vector3f& sensor,
+                                                     double stamp) const;
+  /// Those of `near` that are there at time `t`, placed, within range of `sensor`.
+  [[nodiscard]] std::vector<PlacedActor> placeActors(std::span<const Actor* const> near,
+                                                     const Eigen::Vector3f& sensor, double t) const;
 
   /// T_world_sensor of every column: at its firing time, or all at `stamp` without distortion.
   [[nodiscard]] std::vector<Eigen::Isometry3f> columnPoses(const core::Trajectory& trajectory,
                                                            double stamp) const;
   /// Casts the columns of block `block` and writes their beams' returns.
   void castBlock(int block, std::span<const Eigen::Isometry3f> poses, double stamp,
-                 std::uint64_t seed, const UnitBeams& unit, std::span<BeamReturn> returns) const;
+                 std::uint64_t seed, const UnitBeams& unit, std::span<const Actor* const> actors,
+                 std::span<BeamReturn> returns) const;
   /// What the sensor reports for a hit: the laser's range offset, noise,
   /// dropout and range limits applied.
   [[nodiscard]] BeamReturn measure(const RayHit& hit, float range_offset, BeamRandom& random) const;
@@ -234,6 +305,37 @@ std::vector<Eigen::Isometry3f> ScanSimulator::Impl::columnPoses(const core::Traj
   for (std::size_t c = 0; c < poses.size(); ++c)
     poses[c] = poseAt(trajectory, stamp + beams.column_times[c]).cast<float>();
   return poses;
+}
+
+std::vector<const Actor*> ScanSimulator::Impl::actorsNear(const Eigen::Vector3f& sensor,
+                                                          double stamp) const {
+  std::vector<const Actor*> near;
+  const double sweep = model.sweepDuration();
+  for (const Actor& actor : traffic.actors) {
+    if (actor.poses.empty() || actor.end() < stamp || actor.start > stamp + sweep) continue;
+    // Where it is during the sweep (its first pose there), and how far it can go in one.
+    const auto pose = actor.at(std::clamp(stamp, actor.start, actor.end()));
+    const ActorPose& p = pose ? *pose : actor.poses.front();
+    const double reach = model.max_range + actor.radius + 30.0 * sweep + 1.0;
+    if ((Eigen::Vector2f(p.x, p.y) - sensor.head<2>()).squaredNorm() <= reach * reach)
+      near.push_back(&actor);
+  }
+  return near;
+}
+
+std::vector<PlacedActor> ScanSimulator::Impl::placeActors(std::span<const Actor* const> near,
+                                                          const Eigen::Vector3f& sensor,
+                                                          double t) const {
+  std::vector<PlacedActor> placed;
+  for (const Actor* actor : near) {
+    const auto pose = actor->at(t);
+    if (!pose) continue;
+    const Eigen::Vector3f position(pose->x, pose->y, pose->z);
+    const float reach = static_cast<float>(model.max_range) + actor->radius;
+    if ((position - sensor).head<2>().squaredNorm() > reach * reach) continue;
+    placed.push_back({actor, position, std::cos(pose->yaw), std::sin(pose->yaw)});
+  }
+  return placed;
 }
 
 BeamReturn ScanSimulator::Impl::measure(const RayHit& hit, float range_offset,
@@ -255,6 +357,7 @@ BeamReturn ScanSimulator::Impl::measure(const RayHit& hit, float range_offset,
 
 void ScanSimulator::Impl::castBlock(int block, std::span<const Eigen::Isometry3f> poses,
                                     double stamp, std::uint64_t seed, const UnitBeams& unit,
+                                    std::span<const Actor* const> actors,
                                     std::span<BeamReturn> returns) const {
   const int first = block * kColumnsPerBlock;
   const int last = std::min(first + kColumnsPerBlock, beams.columns);
@@ -271,6 +374,17 @@ void ScanSimulator::Impl::castBlock(int block, std::span<const Eigen::Isometry3f
   }
   std::vector<RayHit> hits(count);
   caster.cast(rays, static_cast<float>(model.max_range), hits);
+  if (!actors.empty()) {
+    // The actors where they are at the block's middle column (a block fires
+    // within a millisecond: a car moves a centimetre).
+    const int middle = (first + last) / 2;
+    const auto placed = placeActors(actors, poses[static_cast<std::size_t>(middle)].translation(),
+                                    stamp + beams.column_times[static_cast<std::size_t>(middle)]);
+    if (!placed.empty()) {
+      for (std::size_t i = 0; i < count; ++i)
+        meetActors(placed, rays[i], static_cast<float>(model.max_range), hits[i]);
+    }
+  }
   std::size_t i = 0;
   for (int c = first; c < last; ++c) {
     for (int r = 0; r < beams.rings; ++r, ++i) {
@@ -301,9 +415,10 @@ core::PointCloud ScanSimulator::Impl::collect(std::span<const BeamReturn> return
   return cloud;
 }
 
-ScanSimulator::ScanSimulator(const World& world, LidarModel model, ScanOptions options) {
+ScanSimulator::ScanSimulator(const World& world, LidarModel model, ScanOptions options,
+                             Traffic traffic) {
   checkModel(model);
-  impl_ = std::make_unique<Impl>(world, std::move(model), options);
+  impl_ = std::make_unique<Impl>(world, std::move(model), options, std::move(traffic));
 }
 
 ScanSimulator::~ScanSimulator() = default;
@@ -314,15 +429,20 @@ const LidarModel& ScanSimulator::model() const {
   return impl_->model;
 }
 
+const Traffic& ScanSimulator::traffic() const {
+  return impl_->traffic;
+}
+
 core::PointCloud ScanSimulator::scan(const core::Trajectory& T_world_sensor, double stamp,
                                      std::uint64_t seed, const BeamCalibration& unit) const {
   if (T_world_sensor.empty()) throw core::Error("cannot simulate a scan on an empty trajectory");
   const UnitBeams unit_beams(impl_->model, unit);
   const auto poses = impl_->columnPoses(T_world_sensor, stamp);
   std::vector<BeamReturn> returns(impl_->model.raysPerScan());
+  const auto actors = impl_->actorsNear(poses.front().translation(), stamp);
   const int blocks = (impl_->beams.columns + kColumnsPerBlock - 1) / kColumnsPerBlock;
   const auto cast_block = [&](int block) {
-    impl_->castBlock(block, poses, stamp, seed, unit_beams, returns);
+    impl_->castBlock(block, poses, stamp, seed, unit_beams, actors, returns);
   };
   if (impl_->options.parallel) {
     tbb::parallel_for(0, blocks, cast_block);

@@ -63,6 +63,10 @@ std::vector<core::Trajectory> readAllGroundTruth(const io::DatasetSpec& spec) {
   return out;
 }
 
+WorldRequest requestOf(const io::DatasetSpec& spec, std::span<const core::Trajectory> routes) {
+  return {.routes = routes, .mount_height = spec.mount_height, .seed = spec.sim->seed};
+}
+
 LidarModel modelOf(const io::DatasetSpec& spec) {
   LidarModel model = LidarModel::byName(spec.sensor);
   model.mount_height = spec.mount_height;
@@ -87,6 +91,17 @@ World generateWorldOfKind(io::WorldKind kind, const WorldRequest& request) {
   }
 }
 
+Traffic generateTrafficOfKind(io::WorldKind kind, const WorldRequest& request, double density) {
+  switch (kind) {
+    case io::WorldKind::campus:
+      return generateTraffic(request, campusStyle(), campusTraffic(), density);
+    case io::WorldKind::aliasing:
+      return generateTraffic(request, aliasingStyle(), cityTraffic(), density);
+    default:
+      return generateTraffic(request, cityStyle(), cityTraffic(), density);
+  }
+}
+
 std::uint64_t scanSeed(std::uint64_t dataset_seed, std::size_t robot, std::size_t index) {
   return mix(mix(mix(dataset_seed) ^ robot) ^ index);
 }
@@ -108,10 +123,9 @@ struct SimWorld::Impl {
   Impl(const io::DatasetSpec& s, std::vector<core::Trajectory> gt, const SimWorldOptions& options)
       : spec(s),
         ground_truth(std::move(gt)),
-        world(generateWorldOfKind(
-            requireSim(s).world,
-            {.routes = ground_truth, .mount_height = s.mount_height, .seed = s.sim->seed})),
-        simulator(world, modelOf(s), scanOptionsOf(*s.sim, options)) {
+        world(generateWorldOfKind(requireSim(s).world, requestOf(s, ground_truth))),
+        simulator(world, modelOf(s), scanOptionsOf(*s.sim, options),
+                  generateTrafficOfKind(s.sim->world, requestOf(s, ground_truth), s.sim->traffic)) {
     for (std::size_t r = 0; r < ground_truth.size(); ++r) {
       const std::size_t unit = s.sim->shared_unit ? 0 : r;
       units.push_back(s.sim->noise && s.sim->calibration_error
@@ -234,7 +248,8 @@ io::DatasetSpec writeSimDataset(const std::string& folder, const Preset& preset,
                          .motion_distortion = options.motion_distortion,
                          .noise = options.noise,
                          .calibration_error = options.calibration_error && preset.calibration_error,
-                         .shared_unit = preset.shared_unit};
+                         .shared_unit = preset.shared_unit,
+                         .traffic = options.traffic};
   for (const Route& route : preset.routes) {
     const std::string gt = "ground_truth/" + route.name + ".tum";
     io::writeTumPoses((fs::path(folder) / gt).string(), route.T_world_sensor);

@@ -25,6 +25,8 @@ float reflectivity(Surface surface) {
       return 0.20f;
     case Surface::wall:
       return 0.40f;
+    case Surface::person:
+      return 0.30f;  // clothing
   }
   return 0.3f;
 }

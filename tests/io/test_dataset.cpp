@@ -28,7 +28,8 @@ DatasetSpec mixedSpec() {
                      .motion_distortion = false,
                      .noise = true,
                      .calibration_error = false,
-                     .shared_unit = true};
+                     .shared_unit = true,
+                     .traffic = 1.5};
   RobotSpec a{.name = "a", .scans = {}, .ground_truth = "a/gt.tum", .start_time = 0.0};
   RobotSpec b{
       .name = "b",
@@ -89,6 +90,7 @@ TEST(Dataset, RoundTripKeepsEveryField) {
   EXPECT_TRUE(back.sim->noise);
   EXPECT_FALSE(back.sim->calibration_error);
   EXPECT_TRUE(back.sim->shared_unit);
+  EXPECT_EQ(back.sim->traffic, 1.5);
   ASSERT_EQ(back.robots.size(), 4u);
   EXPECT_EQ(back.robots[0].scans.type, ScanSourceType::sim);
   EXPECT_EQ(back.robots[1].scans.type, ScanSourceType::kitti);
@@ -262,6 +264,12 @@ TEST(Dataset, RejectsBrokenFilesNamingLineAndKey) {
       {"front-end unknown key",
        edited("    scans:\n", "    odometry: {file: a.tum, topik: /x}\n    scans:\n"),
        {":9:", "field 'robots[0].odometry.topik'", "unknown key"}},
+      {"traffic below zero",
+       edited("robots:\n", "sim:\n  world: city\n  seed: 1\n  traffic: -0.5\nrobots:\n"),
+       {":9:", "field 'sim.traffic'", "outside [0, 10]"}},
+      {"traffic too dense",
+       edited("robots:\n", "sim:\n  world: city\n  seed: 1\n  traffic: 1e9\nrobots:\n"),
+       {":9:", "field 'sim.traffic'", "outside [0, 10]"}},
       {"sim seed",
        edited("robots:\n", "sim:\n  world: city\n  seed: -1\nrobots:\n"),
        {":8:", "field 'sim.seed'", "integer"}},

@@ -89,8 +89,10 @@ TEST(WorldGen, CampusAndAliasingKeepRoutesClear) {
 TEST(WorldGen, CityHasEverySurfaceClass) {
   const World world = city({test::windingRoute(400)});
   const auto histogram = world.surfaceHistogram();
-  for (std::size_t s = 0; s < kSurfaceCount; ++s)
+  for (std::size_t s = 0; s < kSurfaceCount; ++s) {
+    if (static_cast<Surface>(s) == Surface::person) continue;  // moving actors only (traffic)
     EXPECT_GT(histogram[s], 0u) << "no triangles of surface " << s;
+  }
 }
 
 TEST(WorldGen, GeometryStaysWithinTheExtent) {

@@ -104,7 +104,14 @@ struct SimSpec {
   /// first robot's), as when one car's drive is split into robots (the KITTI
   /// presets); default off, each robot its own unit.
   bool shared_unit = false;
+  /// Moving actors (cars, cyclists, pedestrians, cars parked for a while;
+  /// sim/traffic.hpp): this times the world kind's traffic, 0 for none (the
+  /// default), at most kMaxTraffic.
+  double traffic = 0.0;
 };
+
+/// The densest traffic a dataset may ask for (ten times a world kind's own).
+inline constexpr double kMaxTraffic = 10.0;
 
 /// The content of a dataset.yaml.
 struct DatasetSpec {

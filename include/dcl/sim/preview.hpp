@@ -9,6 +9,7 @@
 #include <dcl/core/point_cloud.hpp>
 #include <dcl/core/trajectory.hpp>
 #include <dcl/io/image.hpp>
+#include <dcl/sim/traffic.hpp>
 #include <dcl/sim/world.hpp>
 
 namespace dcl::sim {
@@ -32,9 +33,11 @@ io::Rgb routeColour(std::size_t index);
 /// The world from above, north up: every triangle projected top-down, the
 /// highest one kept per pixel, coloured by surface and brightened with height;
 /// the routes drawn over it in routeColour, each start marked by a ringed disc
-/// and each end by a square.
+/// and each end by a square. With `traffic`, its actors where they are halfway
+/// through its time span, each a footprint in its surface's colour outlined in
+/// white (cars parked for a while in a paler blue).
 io::Image renderWorldPreview(const World& world, std::span<const core::Trajectory> routes,
-                             const PreviewOptions& options = {});
+                             const PreviewOptions& options = {}, const Traffic* traffic = nullptr);
 
 /// A scan from above in its sensor frame, x (forward) up, y (left) left: points
 /// coloured by height (or intensity), higher points over lower ones, range
@@ -43,7 +46,8 @@ io::Image renderScanPreview(const core::PointCloud& scan, const PreviewOptions& 
 
 /// renderWorldPreview written as a PNG. Throws core::FileError on a write failure.
 void writeWorldPreview(const World& world, std::span<const core::Trajectory> routes,
-                       const std::string& png_path, const PreviewOptions& options = {});
+                       const std::string& png_path, const PreviewOptions& options = {},
+                       const Traffic* traffic = nullptr);
 
 /// renderScanPreview written as a PNG. Throws core::FileError on a write failure.
 void writeScanPreview(const core::PointCloud& scan, const std::string& png_path,

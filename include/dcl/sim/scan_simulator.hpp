@@ -1,7 +1,8 @@
 #pragma once
 
 /// Simulated LiDAR sweeps: Embree ray casting into a World along a moving
-/// sensor's ground-truth trajectory.
+/// sensor's ground-truth trajectory, and into the world's moving actors
+/// (Traffic) where they are at each column's time.
 
 #include <cstdint>
 #include <memory>
@@ -9,6 +10,7 @@
 #include <dcl/core/point_cloud.hpp>
 #include <dcl/core/trajectory.hpp>
 #include <dcl/sim/lidar_model.hpp>
+#include <dcl/sim/traffic.hpp>
 #include <dcl/sim/world.hpp>
 
 namespace dcl::sim {
@@ -24,7 +26,11 @@ struct ScanOptions {
 /// Embree scene), then call `scan` from any thread.
 class ScanSimulator {
  public:
-  ScanSimulator(const World& world, LidarModel model, ScanOptions options = {});
+  /// The sweeps of `world` with its moving actors `traffic` (none by default;
+  /// the scans of a world without traffic do not depend on this class's
+  /// handling of actors).
+  ScanSimulator(const World& world, LidarModel model, ScanOptions options = {},
+                Traffic traffic = {});
   ~ScanSimulator();
   ScanSimulator(ScanSimulator&&) noexcept;
   ScanSimulator& operator=(ScanSimulator&&) noexcept;
@@ -42,6 +48,8 @@ class ScanSimulator {
                                       std::uint64_t seed, const BeamCalibration& unit = {}) const;
 
   [[nodiscard]] const LidarModel& model() const;
+  /// The world's moving actors.
+  [[nodiscard]] const Traffic& traffic() const;
 
  private:
   struct Impl;

@@ -15,6 +15,7 @@
 #include <dcl/io/scan_source.hpp>
 #include <dcl/sim/presets.hpp>
 #include <dcl/sim/scan_simulator.hpp>
+#include <dcl/sim/traffic.hpp>
 #include <dcl/sim/world.hpp>
 #include <dcl/sim/world_gen.hpp>
 
@@ -68,6 +69,10 @@ class SimWorld {
 /// The world generator of `kind` applied to `request`.
 World generateWorldOfKind(io::WorldKind kind, const WorldRequest& request);
 
+/// The moving actors of a world of `kind` around `request`'s routes, at
+/// `density` times the kind's own traffic (0: none).
+Traffic generateTrafficOfKind(io::WorldKind kind, const WorldRequest& request, double density);
+
 /// The noise seed of scan `index` of robot `robot` in a dataset seeded `dataset_seed`
 /// (a hash: neighbouring scans and robots get unrelated seeds).
 std::uint64_t scanSeed(std::uint64_t dataset_seed, std::size_t robot, std::size_t index);
@@ -113,6 +118,7 @@ struct SimDatasetOptions {
   bool noise = true;              ///< range noise and dropout; default on
   bool calibration_error =
       true;  ///< with noise: each robot's own lasers' errors where the preset has them; default on
+  double traffic = 0.0;  ///< moving actors, times the world kind's own traffic; default none
 };
 
 /// Writes a simulated dataset for `preset` into `folder`: dataset.yaml and one

@@ -25,10 +25,11 @@ enum class Surface : std::uint8_t {
   pole,        ///< lamp posts, sign poles
   vehicle,     ///< parked cars
   wall,        ///< walls of corridors and courtyards
+  person,      ///< pedestrians and cyclists (moving actors, sim/traffic.hpp)
 };
 
 /// Number of Surface values.
-inline constexpr std::size_t kSurfaceCount = 9;
+inline constexpr std::size_t kSurfaceCount = 10;
 
 /// Diffuse reflectivity in [0, 1] of a surface class (what the LiDAR's intensity sees).
 float reflectivity(Surface surface);
