@@ -1,11 +1,78 @@
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <optional>
+#include <span>
 #include <utility>
 #include <vector>
 
 #include <dcl/core/config.hpp>
 #include <dcl/odometry/lidar_odometry.hpp>
 #include <dcl/odometry/preprocessing.hpp>
+
+namespace dcl::odometry {
+namespace {
+
+/// What one sweep sees in each direction: the nearest return per cell of 1 deg
+/// of azimuth by 1 deg of elevation, around the sensor. A map point the sweep
+/// sees through lies nearer than every return of its cell and the eight around
+/// it, by a margin: the beams passed where it was and went on. Cells without a
+/// return (sky, dropouts, between a sparse sensor's rings) tell nothing, so a
+/// point whose own cell is empty stays, and so does any point in front of or
+/// beside a nearer return (an occluder, a surface seen at grazing incidence).
+class FreeSpace {
+ public:
+  explicit FreeSpace(std::span<const Eigen::Vector3d> points)
+      : nearest_(static_cast<std::size_t>(kRows * kColumns),
+                 std::numeric_limits<float>::infinity()) {
+    for (const Eigen::Vector3d& p : points) {
+      const auto cell = cellOf(p);
+      if (!cell) continue;
+      float& n = nearest_[*cell];
+      n = std::min(n, static_cast<float>(p.norm()));
+    }
+  }
+
+  /// True when the sweep saw past `p` (in the sweep's sensor frame) all round.
+  [[nodiscard]] bool seesThrough(const Eigen::Vector3d& p) const {
+    const double range = p.norm();
+    const auto cell = cellOf(p);
+    if (!cell || !std::isfinite(nearest_[*cell])) return false;
+    const int row = static_cast<int>(*cell / kColumns), column = static_cast<int>(*cell % kColumns);
+    float nearest = std::numeric_limits<float>::infinity();
+    for (int r = std::max(0, row - 1); r <= std::min(kRows - 1, row + 1); ++r) {
+      for (int dc = -1; dc <= 1; ++dc) {
+        const int c = (column + dc + kColumns) % kColumns;
+        nearest = std::min(nearest, nearest_[static_cast<std::size_t>(r * kColumns + c)]);
+      }
+    }
+    return std::isfinite(nearest) && nearest > range + kMargin + kMarginShare * range;
+  }
+
+ private:
+  static constexpr int kColumns = 360;          // 1 deg of azimuth
+  static constexpr int kRows = 120;             // 1 deg of elevation, -60 to +60 deg
+  static constexpr double kMargin = 0.3;        // m, plus
+  static constexpr double kMarginShare = 0.05;  // of the range
+  static constexpr double kMinRange = 1.0;      // m, nearer points are never judged
+
+  [[nodiscard]] static std::optional<std::size_t> cellOf(const Eigen::Vector3d& p) {
+    const double horizontal = std::hypot(p.x(), p.y());
+    if (horizontal + std::abs(p.z()) < kMinRange) return std::nullopt;
+    const double degrees = 180.0 / M_PI;
+    const int row =
+        static_cast<int>(std::floor(std::atan2(p.z(), horizontal) * degrees)) + kRows / 2;
+    if (row < 0 || row >= kRows) return std::nullopt;
+    int column = static_cast<int>(std::floor(std::atan2(p.y(), p.x()) * degrees)) + kColumns / 2;
+    column = std::clamp(column, 0, kColumns - 1);
+    return static_cast<std::size_t>(row * kColumns + column);
+  }
+
+  std::vector<float> nearest_;
+};
+
+}  // namespace
+}  // namespace dcl::odometry
 
 namespace dcl::odometry {
 namespace {
@@ -85,8 +152,10 @@ OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan
   result.health.sharp_motion = frame_registration.twist.has_value();
   if (map_.empty() && t_mid != 0.0) first_sweep_ = FirstSweep{clean.cloud, t_mid};
   commit(stamp, t_mid, registration, T_predicted, frame_registration.twist);
-  const std::vector<Eigen::Vector3d> frame = thinnedFrame(clean.cloud, t_mid);
-  growMap(frame);
+  const std::vector<Eigen::Vector3d> deskewed = deskewedFrame(clean.cloud, t_mid);
+  const std::vector<Eigen::Vector3d> frame =
+      voxelDownsample(deskewed, 0.5 * config_.mapVoxelSize());
+  growMap(deskewed, frame);
   result.health.accepted = true;
   result.T_odom_sensor = T_odom_sensor_;
   result.covariance = covarianceOf(registration);
@@ -153,10 +222,14 @@ core::Matrix6d LidarOdometry::covarianceOf(const RegistrationResult& registratio
   return covariance;
 }
 
+std::vector<Eigen::Vector3d> LidarOdometry::deskewedFrame(const core::PointCloud& cloud,
+                                                          double t_mid) const {
+  return deskew(cloud, config_.deskew ? velocity_ : core::Vector6d::Zero(), t_mid);
+}
+
 std::vector<Eigen::Vector3d> LidarOdometry::thinnedFrame(const core::PointCloud& cloud,
                                                          double t_mid) const {
-  const core::Vector6d v = config_.deskew ? velocity_ : core::Vector6d::Zero();
-  return voxelDownsample(deskew(cloud, v, t_mid), 0.5 * config_.mapVoxelSize());
+  return voxelDownsample(deskewedFrame(cloud, t_mid), 0.5 * config_.mapVoxelSize());
 }
 
 LidarOdometry::FrameSource LidarOdometry::sourceOf(const core::PointCloud& cloud,
@@ -262,7 +335,15 @@ void LidarOdometry::commit(double stamp, double t_mid, const RegistrationResult&
   last_stamp_ = stamp;
 }
 
-void LidarOdometry::growMap(std::span<const Eigen::Vector3d> frame) {
+void LidarOdometry::growMap(std::span<const Eigen::Vector3d> deskewed,
+                            std::span<const Eigen::Vector3d> frame) {
+  if (config_.free_space_radius > 0.0 && !map_.empty()) {
+    const FreeSpace free(deskewed);
+    const Eigen::Isometry3d T_reference_odom = T_odom_reference_.inverse();
+    map_.removeNear(
+        T_odom_reference_.translation(), config_.free_space_radius,
+        [&](const Eigen::Vector3d& p) { return free.seesThrough(T_reference_odom * p); });
+  }
   map_.addPoints(frame, T_odom_reference_);
   map_.removeFarFrom(T_odom_reference_.translation(), config_.max_range);
 }

@@ -375,3 +375,86 @@ TEST(LidarOdometryInput, ASingleplaneIsFlaggedDegenerate) {
 
 }  // namespace
 }  // namespace dcl::odometry
+
+namespace dcl::odometry {
+namespace {
+
+/// A street 20 m wide between two long building walls, with a car parked
+/// 8 m ahead of a sensor that creeps forward at 1 m/s; at t = 1 s the car
+/// drives off ahead at 10 m/s (and is gone from view by t = 3 s).
+struct LeavingCar {
+  sim::World world;
+  sim::Traffic traffic;
+  core::Trajectory sensor;
+
+  LeavingCar() {
+    const auto v = [&](float x, float y, float z) { return world.addVertex({x, y, z}); };
+    world.addQuad(v(-50, -30, 0), v(250, -30, 0), v(250, 30, 0), v(-50, 30, 0), sim::Surface::road);
+    world.addBox(core::makePose2d(100, 11, 0), {300, 2, 12}, sim::Surface::building);
+    world.addBox(core::makePose2d(100, -11, 0), {300, 2, 12}, sim::Surface::building);
+    for (int i = 0; i < 9; ++i) {  // a pole every 12 m on each side: things to register on
+      world.addCylinder({6.0 + 12.0 * i, 7.5, 0}, 0.2, 5, 8, sim::Surface::pole);
+      world.addCylinder({12.0 + 12.0 * i, -7.5, 0}, 0.2, 5, 8, sim::Surface::pole);
+    }
+    sim::Actor car;
+    car.kind = sim::ActorKind::car;
+    car.surface = sim::Surface::vehicle;
+    car.boxes = {{{0.f, 0.f, 0.8f}, {2.2f, 0.9f, 0.7f}}};
+    car.radius = 2.4f;
+    car.step = 0.1;
+    for (int k = 0; k <= 60; ++k) {
+      const double t = 0.1 * k;
+      const double x = 8.0 + (t > 1.0 ? 10.0 * (t - 1.0) : 0.0);
+      car.poses.push_back({static_cast<float>(x), 0.f, 0.f, 0.f});
+      car.absent.push_back(0);
+    }
+    traffic.actors.push_back(car);
+    for (int k = 0; k <= 60; ++k) {
+      Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+      T.translation() = Eigen::Vector3d(0.1 * k, 0.0, 1.73);
+      sensor.push_back(0.1 * k, T);
+    }
+  }
+
+  /// Map points of `odometry` where the car stood, in the world frame.
+  [[nodiscard]] std::size_t ghostPoints(const LidarOdometry& odometry) const {
+    const Eigen::Isometry3d T_world_odom = sensor.pose(0);
+    std::size_t ghosts = 0;
+    for (const Eigen::Vector3d& p : odometry.localMap().pointCloud()) {
+      const Eigen::Vector3d w = T_world_odom * p;
+      if (std::abs(w.x() - 8.0) < 2.4 && std::abs(w.y()) < 1.1 && w.z() > 0.2) ++ghosts;
+    }
+    return ghosts;
+  }
+};
+
+TEST(LidarOdometryFreeSpace, ACarThatDroveOffLeavesNoGhostInTheMap) {
+  const LeavingCar street;
+  const sim::ScanSimulator simulator(street.world, sim::LidarModel::hdl64(),
+                                     {.motion_distortion = true, .noise = true, .parallel = true},
+                                     street.traffic);
+  OdometryConfig carving;
+  carving.free_space_radius = 40.0;
+  const OdometryConfig keeping;  // the default: off
+  LidarOdometry with(carving), without(keeping);
+  std::size_t parked = 0;
+  for (int k = 0; k < 50; ++k) {
+    const core::PointCloud scan = simulator.scan(street.sensor, 0.1 * k, 100 + k);
+    ASSERT_TRUE(with.process(0.1 * k, scan).health.accepted) << k;
+    ASSERT_TRUE(without.process(0.1 * k, scan).health.accepted) << k;
+    if (k == 8) parked = with.localMap().pointCount() > 0 ? street.ghostPoints(with) : 0;
+  }
+  // Parked, the car is in both maps; gone, it stays only in the map that
+  // never removes what the sweeps see through.
+  EXPECT_GT(parked, 20u);
+  EXPECT_GT(street.ghostPoints(without), 20u);
+  EXPECT_LT(street.ghostPoints(with), street.ghostPoints(without) / 10 + 1);
+  // The road, walls and poles stay: carving removes only what moved.
+  EXPECT_GT(static_cast<double>(with.localMap().pointCount()),
+            0.95 * static_cast<double>(without.localMap().pointCount()) -
+                static_cast<double>(street.ghostPoints(without)));
+  EXPECT_LT((with.pose().translation() - without.pose().translation()).norm(), 0.05);
+}
+
+}  // namespace
+}  // namespace dcl::odometry

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstddef>
+#include <iterator>
 #include <optional>
 #include <span>
 #include <unordered_map>
@@ -47,6 +48,22 @@ class VoxelHashMap {
 
   /// Removes every voxel whose first point is farther than `max_distance` (m) from `position`.
   void removeFarFrom(const Eigen::Vector3d& position, double max_distance);
+
+  /// Removes the points within `radius` (m) of `position` (voxels whose first
+  /// point is) for which `remove(point)` is true; returns how many went.
+  template <class Predicate>
+  std::size_t removeNear(const Eigen::Vector3d& position, double radius, Predicate&& remove) {
+    const double radius2 = radius * radius;
+    std::size_t removed = 0;
+    for (auto it = voxels_.begin(); it != voxels_.end();) {
+      VoxelPoints& points = it->second;
+      if (!points.empty() && (points.front() - position).squaredNorm() <= radius2) {
+        removed += static_cast<std::size_t>(std::erase_if(points, remove));
+      }
+      it = points.empty() ? voxels_.erase(it) : std::next(it);
+    }
+    return removed;
+  }
 
   /// The nearest map point to `query` among the 27 voxels around it (none when they are empty).
   [[nodiscard]] std::optional<Neighbor> nearest(const Eigen::Vector3d& query) const;
