@@ -24,6 +24,7 @@
 #include <dcl/backend/pcm.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/core/progress.hpp>
+#include <dcl/eval/loop_scoring.hpp>
 #include <dcl/io/dataset.hpp>
 #include <dcl/io/file.hpp>
 #include <dcl/odometry/lidar_odometry.hpp>
@@ -50,8 +51,7 @@ struct LoopsOptions {
   std::string dataset;                  ///< dataset folder, with ground truth
   std::string out = "out/bench_loops";  ///< output folder (metrics.json, loops.csv)
   std::size_t max_frames = 0;           ///< frames per robot, 0: all
-  double max_error_m = 1.0;             ///< a loop is correct within this translation error
-  double max_error_deg = 2.0;           ///< and this rotation error
+  eval::LoopTolerance tolerance;        ///< a loop is correct within 1 m and 2 deg
   bool json = false;                    ///< print metrics.json instead of the summary
   bool force = false;                   ///< replace --out even when it holds other files
 };
@@ -125,8 +125,7 @@ struct Candidate {
   double ground_truth_m = 0.0;  ///< true distance between the two keyframes
   std::size_t wire_bytes = 0;   ///< the compact verification cloud
   registration::VerificationResult verification;
-  double error_m = 0.0;    ///< translation error of the verified relative pose
-  double error_deg = 0.0;  ///< rotation error of the verified relative pose
+  eval::LoopError error;   ///< of the verified relative pose against the ground truth
   bool correct = false;    ///< verified, and within the error bounds of ground truth
   bool kept = false;       ///< PCM kept it, and the check after it did not withdraw it
   bool withdrawn = false;  ///< PCM kept it, the check after it withdrew it
@@ -191,11 +190,8 @@ void verify(const std::vector<Robot>& robots, Candidate& c, const AppConfig& con
       registration::buildSubmap(v.keyframes, c.match, vc.submap_keyframes, vc.voxel_size);
   c.verification = registration::verifyLoop(received, -c.place.yaw_rad, submap, vc);
   if (!c.verification.accepted) return;
-  const Eigen::Isometry3d truth =
-      v.T_world_keyframe[c.match].inverse() * q.T_world_keyframe[c.query];
-  const Eigen::Isometry3d error = truth.inverse() * c.verification.T_candidate_query;
-  c.error_m = error.translation().norm();
-  c.error_deg = Eigen::AngleAxisd(error.linear()).angle() * 180.0 / M_PI;
+  c.error = eval::loopError(c.verification.T_candidate_query, v.T_world_keyframe[c.match],
+                            q.T_world_keyframe[c.query]);
 }
 
 /// The loop as a robot node keeps it: its covariance with the configured loop noise.
@@ -275,46 +271,44 @@ double ratio(std::size_t a, std::size_t b) {
   return b == 0 ? 0.0 : static_cast<double>(a) / static_cast<double>(b);
 }
 
+/// What became of candidate `c`, as eval grades it.
+eval::CandidateLoop gradeOf(const Candidate& c) {
+  return {c.ground_truth_m, c.verification.accepted, c.correct, c.kept, c.withdrawn};
+}
+
 Json metricsOf(const std::vector<Candidate>& candidates, const LoopsOptions& o,
                double true_loop_distance) {
-  std::size_t revisits = 0, verified = 0, correct = 0, kept = 0, kept_correct = 0, ransac = 0;
-  std::size_t withdrawn = 0, withdrawn_correct = 0;
-  std::size_t bytes = 0;
+  std::vector<eval::CandidateLoop> graded;
+  std::size_t ransac = 0, bytes = 0;
   registration::VerificationStats stats;
   for (const Candidate& c : candidates) {
-    revisits += c.ground_truth_m < true_loop_distance ? 1 : 0;
+    graded.push_back(gradeOf(c));
     stats.add(c.verification);
     bytes += c.wire_bytes;
-    if (!c.verification.accepted) continue;
-    ++verified;
-    ransac += c.verification.used_ransac ? 1 : 0;
-    correct += c.correct ? 1 : 0;
-    kept += c.kept ? 1 : 0;
-    kept_correct += c.kept && c.correct ? 1 : 0;
-    withdrawn += c.withdrawn ? 1 : 0;
-    withdrawn_correct += c.withdrawn && c.correct ? 1 : 0;
+    ransac += c.verification.accepted && c.verification.used_ransac ? 1 : 0;
   }
+  const eval::LoopCounts n = eval::countLoops(graded, true_loop_distance);
   Json reasons = Json::object();
   for (std::size_t r = 1; r < registration::kRejectReasonCount; ++r) {
     const auto reason = static_cast<registration::RejectReason>(r);
     reasons[std::string(registration::toString(reason))] = stats.count(reason);
   }
-  return {{"candidates", candidates.size()},
-          {"candidates_true", revisits},
-          {"verified", verified},
-          {"verified_correct", correct},
-          {"verified_wrong", verified - correct},
+  return {{"candidates", n.candidates},
+          {"candidates_true", n.candidates_true},
+          {"verified", n.verified},
+          {"verified_correct", n.verified_correct},
+          {"verified_wrong", n.verified_wrong},
           {"verified_by_ransac", ransac},
           {"rejected_by_reason", reasons},
-          {"kept", kept},
-          {"kept_correct", kept_correct},
-          {"kept_wrong", kept - kept_correct},
-          {"withdrawn", withdrawn},
-          {"withdrawn_correct", withdrawn_correct},
-          {"precision", kept == 0 ? 1.0 : ratio(kept_correct, kept)},
-          {"recall", ratio(kept_correct, correct)},
+          {"kept", n.kept},
+          {"kept_correct", n.kept_correct},
+          {"kept_wrong", n.kept_wrong},
+          {"withdrawn", n.withdrawn},
+          {"withdrawn_correct", n.withdrawn_correct},
+          {"precision", n.precision},
+          {"recall", n.recall},
           {"wire_bytes_mean", ratio(bytes, candidates.size())},
-          {"correct_within", {{"m", o.max_error_m}, {"deg", o.max_error_deg}}}};
+          {"correct_within", {{"m", o.tolerance.max_error_m}, {"deg", o.tolerance.max_error_deg}}}};
 }
 
 void writeCsv(const std::string& path, const std::vector<Robot>& robots,
@@ -329,8 +323,8 @@ void writeCsv(const std::string& path, const std::vector<Robot>& robots,
         robots[c.querier].name, c.query, robots[c.verifier].name, c.match, c.place.distance,
         c.place.yaw_rad * 180.0 / M_PI, c.ground_truth_m, c.verification.accepted ? 1 : 0,
         registration::toString(c.verification.reason), c.verification.inlier_share,
-        c.verification.fitness, c.verification.used_ransac ? 1 : 0, c.error_m, c.error_deg,
-        c.correct ? 1 : 0, c.kept ? 1 : 0, c.withdrawn ? 1 : 0);
+        c.verification.fitness, c.verification.used_ransac ? 1 : 0, c.error.translation_m,
+        c.error.rotation_deg, c.correct ? 1 : 0, c.kept ? 1 : 0, c.withdrawn ? 1 : 0);
   io::writeFileAtomic(path, [&](std::ostream& out) { out << s; });
 }
 
@@ -374,8 +368,7 @@ void runLoops(const LoopsOptions& o, const AppConfig& config) {
   progress.finish();
   const double verify_s = secondsSince(verify_start);
   for (Candidate& c : candidates)
-    c.correct =
-        c.verification.accepted && c.error_m <= o.max_error_m && c.error_deg <= o.max_error_deg;
+    c.correct = c.verification.accepted && eval::isCorrect(c.error, o.tolerance);
 
   const robot::RobotConfig node = robotConfig(config);
   const auto pcm_start = Clock::now();
@@ -439,10 +432,11 @@ void addBenchLoopsCommand(CLI::App& bench, const AppConfig& config) {
   cmd->add_option("--max-frames", o->max_frames, "frames per robot (0: all)")
       ->check(kNonNegative)
       ->capture_default_str();
-  cmd->add_option("--max-error-m", o->max_error_m, "m, a correct loop's largest translation error")
+  cmd->add_option("--max-error-m", o->tolerance.max_error_m,
+                  "m, a correct loop's largest translation error")
       ->check(kNonNegative)
       ->capture_default_str();
-  cmd->add_option("--max-error-deg", o->max_error_deg,
+  cmd->add_option("--max-error-deg", o->tolerance.max_error_deg,
                   "deg, a correct loop's largest rotation error")
       ->check(kNonNegative)
       ->capture_default_str();

@@ -30,15 +30,16 @@
 #include <nlohmann/json.hpp>
 
 #include <dcl/core/error.hpp>
+#include <dcl/eval/bound.hpp>
 #include <dcl/io/dataset.hpp>
 #include <dcl/io/file.hpp>
 #include <dcl/sim/presets.hpp>
 #include <dcl/sim/sim_source.hpp>
 #include <dcl/swarm/swarm_run.hpp>
 
-#include "bound.hpp"
 #include "commands.hpp"
 #include "option_checks.hpp"
+#include "run_graphs.hpp"
 #include "run_swarm.hpp"
 
 namespace dcl::apps {
@@ -46,6 +47,9 @@ namespace {
 
 namespace fs = std::filesystem;
 using Json = nlohmann::ordered_json;
+using eval::meanLowered;
+using eval::notBelow;
+using eval::RobotBound;
 
 // The paper's average transmit rates per robot (Table IV and §IV-E), kB/s.
 constexpr double kPaperKittiTransmit = 164.67;
@@ -120,7 +124,7 @@ struct DatasetRun {
   std::uint64_t seed = 1;
   Json metrics;
   double seconds = 0.0;           ///< wall time of the run
-  std::vector<RobotBound> bound;  ///< own SLAM, joint optimum and exact loops (bound.hpp)
+  std::vector<RobotBound> bound;  ///< own SLAM, joint optimum and exact loops (eval/bound.hpp)
 };
 
 /// The bound tables: what each robot's own loops, the system, the joint
@@ -320,7 +324,10 @@ DatasetRun runOne(const std::string& preset, int robots, std::uint64_t seed,
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   DatasetRun run{name, preset, seed, std::move(metrics), seconds, {}};
-  run.bound = computeBound((fs::path(o.work) / (name + "-run")).string(), folder);
+  const std::string run_folder = (fs::path(o.work) / (name + "-run")).string();
+  std::vector<eval::RobotGraph> graphs = readRunGraphs(run_folder, folder);
+  readRobotsThatLeft(run_folder, graphs);
+  run.bound = eval::computeBound(graphs);
   return run;
 }
 

@@ -1,26 +1,23 @@
 #pragma once
 
 /// How far the loops of a run could take its robots (`dcl-slam bench bound`,
-/// and a table of `bench system`). The run's joint pose graph (every robot's
-/// graph.g2o: its keyframes at their final estimates, odometry, intra- and
-/// inter-robot loops) is solved centrally, as it is and with every
-/// inter-robot loop's measurement replaced by the ground truth. Beside the
-/// odometry, the robot's own SLAM (odometry and its own loops) and the run,
-/// this tells whether a robot's ATE is limited by the distributed solve, by
-/// the loops' accuracy, or by where the robots drove: a robot whose route
-/// others barely share gains little even from exact loops, and may lose (its
-/// neighbours' drift comes in with them).
-///
-/// `dcl-slam bench noise` reads the same outputs and sets the factors'
-/// covariances beside their errors against the ground truth (odometry
-/// compounded over spans of keyframes, own and inter-robot loops): whether the
-/// noise model weighs odometry and loops as their errors do.
+/// and a table of `bench system`). The run's joint pose graph (run_graph.hpp)
+/// is solved centrally, as it is and with every inter-robot loop's
+/// measurement replaced by the ground truth. Beside the odometry, the robot's
+/// own SLAM (odometry and its own loops) and the run, this tells whether a
+/// robot's ATE is limited by the distributed solve, by the loops' accuracy,
+/// or by where the robots drove: a robot whose route others barely share
+/// gains little even from exact loops, and may lose (its neighbours' drift
+/// comes in with them).
 
 #include <cstddef>
 #include <string>
 #include <vector>
 
-namespace dcl::apps {
+#include <dcl/backend/pose_graph.hpp>
+#include <dcl/eval/run_graph.hpp>
+
+namespace dcl::eval {
 
 /// ATE RMSE (m, each robot aligned on its own by SE(3), as the run's metrics)
 /// of one robot's keyframes.
@@ -38,7 +35,7 @@ struct RobotBound {
   double run_joint = 0.0;
   double optimum_joint = 0.0;
   double exact_joint = 0.0;
-  /// The robot left the swarm mid-run (`left_at_s` in the run's metrics.json).
+  /// The robot left the swarm mid-run (RobotGraph::left).
   bool left = false;
 };
 
@@ -60,10 +57,28 @@ struct JointCosts {
   double stayed_optimum = 0.0;
 };
 
-/// The bound of the run in folder `run` (outputs of `dcl-slam run`) of the
-/// dataset in folder `dataset`, and the joint graph's costs into `costs` when
-/// given. Throws core::Error naming the file for a missing or inconsistent output.
-std::vector<RobotBound> computeBound(const std::string& run, const std::string& dataset,
+/// The joint graph of `robots` with `factors`, solved centrally (200
+/// Levenberg-Marquardt iterations at most) from the run's estimates and from
+/// the chordal initialisation: a run whose robots ended in frames of
+/// different rounds is a poor start, and Levenberg-Marquardt can settle in a
+/// local minimum from it. The solution of lower cost.
+backend::PoseGraph solveJointGraph(const std::vector<RobotGraph>& robots, JointFactors factors);
+
+/// The ATE RMSE (m, SE(3) alignment of this robot alone, as the run's
+/// metrics) of robot `r`'s keyframes at their estimates in `graph`; NaN
+/// when they cannot be aligned (a robot that has not moved yet).
+double robotAte(const RobotGraph& r, const backend::PoseGraph& graph);
+
+/// Every robot's ATE RMSE (m) in `graph` under one SE(3) alignment fitted on
+/// the pairs of all robots of its loop group (loopGroups) together, as the
+/// run's report measures `ate_rmse_joint` over the robots of one frame; NaN
+/// for a group whose alignment cannot be fitted.
+std::vector<double> jointAtes(const std::vector<RobotGraph>& robots,
+                              const backend::PoseGraph& graph);
+
+/// The bound of a run's robots, and the joint graph's costs into `costs`
+/// when given (`RobotGraph::left` says which robots left).
+std::vector<RobotBound> computeBound(const std::vector<RobotGraph>& robots,
                                      JointCosts* costs = nullptr);
 
 /// The mean over the robots of 1 - value / base: the ATE lowered against
@@ -75,4 +90,4 @@ double meanLowered(const std::vector<RobotBound>& robots, double RobotBound::*va
 std::size_t notBelow(const std::vector<RobotBound>& robots, double RobotBound::*value,
                      double RobotBound::*base);
 
-}  // namespace dcl::apps
+}  // namespace dcl::eval
