@@ -21,6 +21,7 @@
 #include <dcl/core/colour.hpp>
 #include <dcl/core/error.hpp>
 #include <dcl/core/progress.hpp>
+#include <dcl/eval/loop_scoring.hpp>
 #include <dcl/eval/run_report.hpp>
 #include <dcl/io/dataset.hpp>
 #include <dcl/io/file.hpp>
@@ -119,11 +120,6 @@ double counter(const std::map<std::string, double>& counters, const std::string&
   return it == counters.end() ? 0.0 : it->second;
 }
 
-/// A loop is wrong when its relative pose is more than 1 m or 2 deg off the
-/// ground truth's (bench loops' grading).
-constexpr double kWrongLoopM = 1.0;
-constexpr double kWrongLoopDeg = 2.0;
-
 /// The ground truth of keyframe `key` at its stamp; none when the truth does not cover it.
 std::optional<Eigen::Isometry3d> truthAt(const swarm::SwarmResult& result,
                                          const std::vector<core::Trajectory>& truths,
@@ -136,7 +132,8 @@ std::optional<Eigen::Isometry3d> truthAt(const swarm::SwarmResult& result,
 }
 
 /// The accepted inter-robot loops robot `r` is the lower robot of that the
-/// ground truth says are wrong; none when a robot has no ground truth.
+/// ground truth says are wrong (more than 1 m or 2 deg off, as `bench loops`
+/// grades them: eval::LoopTolerance); none when a robot has no ground truth.
 std::optional<std::size_t> wrongAcceptedLoops(const swarm::SwarmResult& result,
                                               const std::vector<core::Trajectory>& truths,
                                               std::size_t r) {
@@ -147,9 +144,7 @@ std::optional<std::size_t> wrongAcceptedLoops(const swarm::SwarmResult& result,
     const auto from = truthAt(result, truths, f.from);
     const auto to = truthAt(result, truths, f.to);
     if (!from || !to) return std::nullopt;
-    const Eigen::Isometry3d error = f.T_from_to.inverse() * from->inverse() * *to;
-    wrong += error.translation().norm() > kWrongLoopM ||
-             core::rad2deg(core::rotationAngle(error.rotation())) > kWrongLoopDeg;
+    wrong += eval::isCorrect(eval::loopError(f.T_from_to, *from, *to), {}) ? 0 : 1;
   }
   return wrong;
 }

@@ -1,5 +1,6 @@
 #include <cmath>
 
+#include <dcl/core/se3.hpp>
 #include <dcl/eval/loop_scoring.hpp>
 
 namespace dcl::eval {
@@ -15,7 +16,7 @@ LoopError loopError(const Eigen::Isometry3d& T_a_b, const Eigen::Isometry3d& T_w
                     const Eigen::Isometry3d& T_world_b) {
   const Eigen::Isometry3d truth = T_world_a.inverse() * T_world_b;
   const Eigen::Isometry3d error = truth.inverse() * T_a_b;
-  return {error.translation().norm(), Eigen::AngleAxisd(error.linear()).angle() * 180.0 / M_PI};
+  return {error.translation().norm(), core::rad2deg(core::rotationAngle(error.rotation()))};
 }
 
 bool isCorrect(const LoopError& error, const LoopTolerance& tolerance) {

@@ -189,9 +189,7 @@ void drawTraffic(io::Image& image, const Raster& raster, const Traffic& traffic)
   for (const Actor& a : traffic.actors) {
     const auto pose = a.at(t);
     if (!pose) continue;
-    Eigen::Vector2d half = Eigen::Vector2d::Zero();
-    for (const ActorBox& b : a.boxes)
-      half = half.cwiseMax((b.centre.head<2>().cwiseAbs() + b.half.head<2>()).cast<double>());
+    const Eigen::Vector2d half = a.footprint().cast<double>();
     const Eigen::Vector2d centre(pose->x, pose->y);
     const Eigen::Vector2d along(std::cos(pose->yaw), std::sin(pose->yaw));
     const Eigen::Vector2d left(-along.y(), along.x());

@@ -193,15 +193,6 @@ Actor makeBody(ActorKind kind, detail::Rng& rng) {
   return a;
 }
 
-/// The footprint's half extents of an actor (for the robots' clearance).
-Eigen::Vector2d footprintHalf(const Actor& a) {
-  Eigen::Vector2d half = Eigen::Vector2d::Zero();
-  for (const auto& b : a.boxes) {
-    half = half.cwiseMax((b.centre.head<2>().cwiseAbs() + b.half.head<2>()).cast<double>());
-  }
-  return half;
-}
-
 /// What a mover does on its path.
 struct Behaviour {
   double speed_min = 1.0, speed_max = 1.5;  ///< m/s, cruising
@@ -219,6 +210,7 @@ struct Mover {
   double next_stop = std::numeric_limits<double>::infinity();
   double waiting = 0.0;  ///< s left standing at a stop
   bool done = false;
+  detail::Rng rng{0};  ///< its own: where it stops and for how long
 };
 
 /// The actors of one path (a lane or a pavement in one direction), from the
@@ -289,14 +281,18 @@ class Lane {
     m.actor = makeBody(kind_, rng);
     m.actor.start = t;
     m.actor.step = kStep;
-    m.half = footprintHalf(m.actor);
+    m.half = m.actor.footprint().cast<double>();
     m.s = s;
     m.cruise = rng.uniform(behaviour_.speed_min, behaviour_.speed_max);
     m.v = m.cruise;
-    if (behaviour_.stop_spacing > 0.0)
-      m.next_stop = s - behaviour_.stop_spacing * std::log(1.0 - rng.uniform());
-    stop_seed_ = detail::mix(stop_seed_, rng.next());
+    m.rng = detail::Rng(rng.next());
+    if (behaviour_.stop_spacing > 0.0) m.next_stop = s + nextStop(m);
     return m;
+  }
+
+  /// How far a mover drives to its next stop (exponential, the behaviour's mean).
+  [[nodiscard]] double nextStop(Mover& m) const {
+    return -behaviour_.stop_spacing * std::log(1.0 - m.rng.uniform());
   }
 
   /// The distance ahead along the path (from the mover's front) to the first
@@ -325,16 +321,12 @@ class Lane {
     if (m.waiting > 0.0) {
       m.waiting -= kStep;
       target = 0.0;
-      if (m.waiting <= 0.0) {
-        detail::Rng rng(detail::mix(stop_seed_, static_cast<std::uint64_t>(k)));
-        m.next_stop = m.s - behaviour_.stop_spacing * std::log(1.0 - rng.uniform());
-      }
+      if (m.waiting <= 0.0) m.next_stop = m.s + nextStop(m);
     } else if (std::isfinite(m.next_stop)) {
       const double d = m.next_stop - m.s;
       target = std::min(target, std::sqrt(2.0 * kBrake * std::max(0.0, d)));
       if (d < 0.5 && m.v < 0.5) {
-        detail::Rng rng(detail::mix(stop_seed_, ~static_cast<std::uint64_t>(k)));
-        m.waiting = rng.uniform(2.0, 10.0);
+        m.waiting = m.rng.uniform(2.0, 10.0);
         m.next_stop = std::numeric_limits<double>::infinity();
       }
     }
@@ -367,7 +359,6 @@ class Lane {
   std::vector<Mover> movers_;
   std::vector<double> arrivals_;
   std::uint64_t rng_seed_ = 0;
-  std::uint64_t stop_seed_ = 0x5eed;
 };
 
 /// A path that walks `a` m along one pavement, crosses the street at the
@@ -412,6 +403,13 @@ std::optional<ActorPose> Actor::at(double t) const {
   if (turn < -static_cast<float>(M_PI)) turn += 2.0f * static_cast<float>(M_PI);
   return ActorPose{a.x + f * (b.x - a.x), a.y + f * (b.y - a.y), a.z + f * (b.z - a.z),
                    a.yaw + f * turn};
+}
+
+Eigen::Vector2f Actor::footprint() const {
+  Eigen::Vector2f half = Eigen::Vector2f::Zero();
+  for (const ActorBox& b : boxes)
+    half = half.cwiseMax(b.centre.head<2>().cwiseAbs() + b.half.head<2>());
+  return half;
 }
 
 std::size_t Traffic::count(ActorKind kind) const {
@@ -525,7 +523,6 @@ Traffic generateTraffic(const WorldRequest& request, const WorldStyle& style,
         const Eigen::Vector2d xy = f.xy + side * (w - 1.1) * f.left;
         const double yaw = std::atan2(f.along.y(), f.along.x()) + (side > 0 ? M_PI : 0.0);
         Actor a = makeBody(ActorKind::parked_car, rng);
-        a.kind = ActorKind::parked_car;
         const double span = t1 - t0;
         const double begin = rng.uniform(t0 - 0.5 * span, t1);
         const double end = std::min(t1, begin + rng.uniform(0.1, 0.6) * span);

@@ -60,6 +60,8 @@ struct Actor {
   std::vector<ActorPose> poses{};
   std::vector<std::uint8_t> absent{};  ///< 1 where the actor is not there (a robot too close)
 
+  /// Half extents (along x, y) of the rectangle around every box's footprint.
+  [[nodiscard]] Eigen::Vector2f footprint() const;
   /// Time of the last pose.
   [[nodiscard]] double end() const { return start + step * static_cast<double>(poses.size() - 1); }
   /// The pose at time `t`, interpolated; none outside the actor's life or
