@@ -13,6 +13,9 @@
 namespace dcl::odometry {
 namespace {
 
+/// Accepted frames from one free-space carving of the map to the next.
+constexpr int kFramesPerCarving = 4;
+
 /// What one sweep sees in each direction: the nearest return per cell of 1 deg
 /// of azimuth by 1 deg of elevation, around the sensor. A map point the sweep
 /// sees through lies nearer than every return of its cell and the eight around
@@ -337,7 +340,11 @@ void LidarOdometry::commit(double stamp, double t_mid, const RegistrationResult&
 
 void LidarOdometry::growMap(std::span<const Eigen::Vector3d> deskewed,
                             std::span<const Eigen::Vector3d> frame) {
-  if (config_.free_space_radius > 0.0 && !map_.empty()) {
+  // Every few frames: a ghost outlives its object by a few tenths of a second,
+  // and the map is visited a few times less.
+  if (config_.free_space_radius > 0.0 && !map_.empty() &&
+      ++frames_since_carving_ >= kFramesPerCarving) {
+    frames_since_carving_ = 0;
     const FreeSpace free(deskewed);
     const Eigen::Isometry3d T_reference_odom = T_odom_reference_.inverse();
     map_.removeNear(

@@ -224,6 +224,7 @@ class LidarOdometry final : public Odometry {
     double t_mid = 0.0;      ///< s after the stamp, where it was registered
   };
   std::optional<FirstSweep> first_sweep_;
+  int frames_since_carving_ = 0;  ///< accepted frames since the map was last carved
 };
 
 }  // namespace dcl::odometry
