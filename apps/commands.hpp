@@ -38,6 +38,9 @@ void addSimulateCommand(CLI::App& app);
 /// `bench sim` (on the `bench` subcommand): the scan stream of a dataset, timed.
 void addBenchSimCommand(CLI::App& bench);
 
+/// `bench sensor`: real LiDAR sweeps' statistics beside a simulated dataset's (cmd_sensor.cpp).
+void addBenchSensorCommand(CLI::App& bench);
+
 /// `odometry`: one robot's front-end alone.
 void addOdometryCommand(CLI::App& app, const AppConfig& config);
 

@@ -135,6 +135,7 @@ int run(int argc, char** argv) {
   auto* bench = app.add_subcommand("bench", "benchmarks of the system's parts");
   bench->require_subcommand(1);
   dcl::apps::addBenchSimCommand(*bench);
+  dcl::apps::addBenchSensorCommand(*bench);
   dcl::apps::addBenchOdometryCommand(*bench, config);
   dcl::apps::addBenchPlaceCommand(*bench, config);
   dcl::apps::addBenchLoopsCommand(*bench, config);

@@ -26,10 +26,16 @@ constexpr int kColumnsPerBlock = 16;
 /// KITTI-like street scene averages near KITTI's mean intensity of about 0.28:
 ///   I = gain * reflectivity * (floor + (1 - floor) * cos(incidence)) / (1 + r / falloff) + noise.
 struct IntensityModel {
-  float gain = 1.65f;            ///< overall scale of the sensor's reflectance calibration
-  float shading_floor = 0.4f;    ///< share of the return that does not follow cos(incidence)
+  float gain = 2.7f;             ///< overall scale of the sensor's reflectance calibration
+  float shading_floor = 0.75f;   ///< share of the return that does not follow cos(incidence)
   float falloff_range = 150.0f;  ///< m, range at which the return has halved
   float noise_sigma = 0.02f;     ///< Gaussian noise on the reported intensity
+  /// Real surfaces are not one colour: paint, dirt, wet and dry patches. A
+  /// surface's reflectivity varies by a log-normal factor of this sigma from
+  /// one cell of the world to the next (cells of albedo_cell metres), the same
+  /// in every sweep.
+  float albedo_sigma = 0.7f;
+  float albedo_cell = 0.5f;
 };
 constexpr IntensityModel kIntensity{};
 
@@ -78,14 +84,42 @@ Eigen::Isometry3d poseAt(const core::Trajectory& trajectory, double t) {
 struct BeamReturn {
   float range = std::numeric_limits<float>::quiet_NaN();  ///< m, NaN when no return
   float intensity = 0.0f;                                 ///< in [0, 1]
+  float azimuth_jitter = 0.0f;  ///< rad, how far from its column's azimuth the beam fired
 };
 
-/// The noiseless intensity of a hit (IntensityModel), before clamping.
-float intensityOf(const RayHit& hit) {
+/// Keys of the random streams a beam draws from besides its measurement's.
+constexpr std::uint64_t kJitterStream = 0x6a09e667f3bcc909ULL;
+constexpr std::uint64_t kMixStream = 0xbb67ae8584caa73bULL;
+
+/// `v` turned by `angle` (rad) about the sensor's z axis.
+Eigen::Vector3f turnedAboutZ(const Eigen::Vector3f& v, float angle) {
+  const float c = std::cos(angle), s = std::sin(angle);
+  return {c * v.x() - s * v.y(), s * v.x() + c * v.y(), v.z()};
+}
+
+/// The factor by which the reflectivity of the world's cell at `at` departs
+/// from its surface's (IntensityModel::albedo_sigma), mean 1.
+float albedoAt(const Eigen::Vector3f& at) {
+  std::uint64_t key = 0;
+  for (int axis = 0; axis < 3; ++axis) {
+    const auto cell = static_cast<std::int64_t>(std::floor(at[axis] / kIntensity.albedo_cell));
+    key = mix64(key + static_cast<std::uint64_t>(cell));
+  }
+  const float u1 = static_cast<float>((key >> 40) + 1) * 0x1.0p-24f;  // (0, 1]
+  const float u2 = static_cast<float>(mix64(key) >> 40) * 0x1.0p-24f;
+  const float normal =
+      std::sqrt(-2.0f * std::log(u1)) * std::cos(2.0f * static_cast<float>(M_PI) * u2);
+  const float sigma = kIntensity.albedo_sigma;
+  return std::exp(sigma * normal - 0.5f * sigma * sigma);
+}
+
+/// The noiseless intensity of a hit (IntensityModel) on a cell of albedo
+/// factor `albedo`, before clamping.
+float intensityOf(const RayHit& hit, float albedo) {
   const float shading =
       kIntensity.shading_floor + (1.0f - kIntensity.shading_floor) * hit.cos_incidence;
   const float falloff = 1.0f / (1.0f + hit.range / kIntensity.falloff_range);
-  return kIntensity.gain * reflectivity(hit.surface) * shading * falloff;
+  return kIntensity.gain * reflectivity(hit.surface) * albedo * shading * falloff;
 }
 
 /// The sweep's fixed geometry: beam directions in the sensor frame and firing times.
@@ -254,9 +288,16 @@ void checkModel(const LidarModel& model) {
                       "' needs at least one beam, one column and a positive rate");
   if (!(model.min_range >= 0.0 && model.max_range > model.min_range))
     throw core::Error("LiDAR model '" + model.name + "' needs 0 <= min_range < max_range");
-  if (!(model.dropout >= 0.0 && model.dropout < 1.0) || !(model.range_noise_sigma >= 0.0))
+  if (!(model.dropout >= 0.0 && model.dropout < 1.0) || !(model.range_noise_sigma >= 0.0) ||
+      !(model.range_noise_per_m >= 0.0) || !(model.range_noise_max >= 0.0))
     throw core::Error("LiDAR model '" + model.name +
                       "' needs dropout in [0, 1) and a non-negative noise sigma");
+  if (!(model.dark_dropout >= 0.0 && model.dark_dropout <= 1.0) || !(model.dark_intensity > 0.0) ||
+      !(model.mixed_pixel_rate >= 0.0 && model.mixed_pixel_rate <= 1.0) ||
+      !(model.foliage_depth >= 0.0) || !(model.azimuth_jitter_deg >= 0.0))
+    throw core::Error("LiDAR model '" + model.name +
+                      "' needs dark dropout and mixed-pixel rate in [0, 1], a positive dark "
+                      "intensity, and non-negative foliage depth and azimuth jitter");
 }
 
 }  // namespace
@@ -292,7 +333,11 @@ struct ScanSimulator::Impl {
                  std::span<BeamReturn> returns) const;
   /// What the sensor reports for a hit: the laser's range offset, noise,
   /// dropout and range limits applied.
-  [[nodiscard]] BeamReturn measure(const RayHit& hit, float range_offset, BeamRandom& random) const;
+  [[nodiscard]] BeamReturn measure(const RayHit& hit, float range_offset, float albedo,
+                                   BeamRandom& random) const;
+  /// Mixed pixels: where two neighbouring beams of a ring meet surfaces far
+  /// apart, one of them now and then reports a range between the two.
+  void mixDepthEdges(std::span<BeamReturn> returns, double stamp, std::uint64_t seed) const;
   /// The returns as a cloud, column by column, rings in order within a column.
   [[nodiscard]] core::PointCloud collect(std::span<const BeamReturn> returns) const;
 };
@@ -338,20 +383,31 @@ std::vector<PlacedActor> ScanSimulator::Impl::placeActors(std::span<const Actor*
   return placed;
 }
 
-BeamReturn ScanSimulator::Impl::measure(const RayHit& hit, float range_offset,
+BeamReturn ScanSimulator::Impl::measure(const RayHit& hit, float range_offset, float albedo,
                                         BeamRandom& random) const {
   if (!hit.hit()) return {};
   if (!options.noise) {
     const float range = hit.range + range_offset;
     if (range < model.min_range) return {};
-    return {range, std::clamp(intensityOf(hit), 0.0f, 1.0f)};
+    return {range, std::clamp(intensityOf(hit, albedo), 0.0f, 1.0f)};
   }
   if (random.uniform() < model.dropout) return {};
   const auto [range_noise, intensity_noise] = random.gaussianPair();
-  const float range =
-      hit.range + range_offset + static_cast<float>(model.range_noise_sigma) * range_noise;
+  const float clean_intensity = intensityOf(hit, albedo);
+  if (model.dark_dropout > 0.0 && clean_intensity < model.dark_intensity &&
+      random.uniform() < model.dark_dropout * (1.0 - clean_intensity / model.dark_intensity))
+    return {};
+  float depth = hit.range;
+  if (hit.surface == Surface::vegetation && model.foliage_depth > 0.0) {
+    // Exponential, cut at three means: a crown's returns come from its outer layer.
+    const float into = -std::log(1.0f - random.uniform());
+    depth += static_cast<float>(model.foliage_depth) * std::min(into, 3.0f);
+  }
+  const auto sigma = static_cast<float>(
+      std::min(model.range_noise_sigma + model.range_noise_per_m * depth, model.range_noise_max));
+  const float range = depth + range_offset + sigma * range_noise;
   if (range < model.min_range || range > model.max_range) return {};
-  const float intensity = intensityOf(hit) + kIntensity.noise_sigma * intensity_noise;
+  const float intensity = clean_intensity + kIntensity.noise_sigma * intensity_noise;
   return {range, std::clamp(intensity, 0.0f, 1.0f)};
 }
 
@@ -364,12 +420,21 @@ void ScanSimulator::Impl::castBlock(int block, std::span<const Eigen::Isometry3f
   const auto offset = static_cast<std::size_t>(first * beams.rings);
   const auto count = static_cast<std::size_t>((last - first) * beams.rings);
   std::vector<Ray> rays(count);
+  std::vector<float> jitter(count, 0.0f);
+  const bool jittered = options.noise && model.azimuth_jitter_deg > 0.0;
+  const auto jitter_sigma = static_cast<float>(core::deg2rad(model.azimuth_jitter_deg));
   for (int c = first; c < last; ++c) {
     const auto& T_world_sensor = poses[static_cast<std::size_t>(c)];
     for (int r = 0; r < beams.rings; ++r) {
-      auto& ray = rays[static_cast<std::size_t>(c * beams.rings + r) - offset];
-      ray.origin = T_world_sensor.translation();
-      ray.direction = T_world_sensor.linear() * unit.direction(beams.direction(r, c), r);
+      const auto i = static_cast<std::size_t>(c * beams.rings + r) - offset;
+      Eigen::Vector3f tabled = beams.direction(r, c);
+      if (jittered) {
+        BeamRandom random(seed ^ kJitterStream, stamp, r, c);
+        jitter[i] = jitter_sigma * random.gaussianPair().first;
+        tabled = turnedAboutZ(tabled, jitter[i]);
+      }
+      rays[i].origin = T_world_sensor.translation();
+      rays[i].direction = T_world_sensor.linear() * unit.direction(tabled, r);
     }
   }
   std::vector<RayHit> hits(count);
@@ -390,7 +455,32 @@ void ScanSimulator::Impl::castBlock(int block, std::span<const Eigen::Isometry3f
     for (int r = 0; r < beams.rings; ++r, ++i) {
       if (beams.blocked[offset + i]) continue;  // stays "no return"
       BeamRandom random(seed, stamp, r, c);
-      returns[offset + i] = measure(hits[i], unit.rangeOffset(r), random);
+      const float albedo =
+          hits[i].hit() ? albedoAt(rays[i].origin + rays[i].direction * hits[i].range) : 1.0f;
+      returns[offset + i] = measure(hits[i], unit.rangeOffset(r), albedo, random);
+      returns[offset + i].azimuth_jitter = jitter[i];
+    }
+  }
+}
+
+void ScanSimulator::Impl::mixDepthEdges(std::span<BeamReturn> returns, double stamp,
+                                        std::uint64_t seed) const {
+  if (!options.noise || model.mixed_pixel_rate <= 0.0) return;
+  // Decided on the ranges as cast, so that one mixed beam does not make another.
+  std::vector<float> cast(returns.size());
+  std::transform(returns.begin(), returns.end(), cast.begin(),
+                 [](const BeamReturn& b) { return b.range; });
+  const auto rings = static_cast<std::size_t>(beams.rings);
+  for (std::size_t c = 0; c + 1 < static_cast<std::size_t>(beams.columns); ++c) {
+    for (std::size_t r = 0; r < rings; ++r) {
+      const std::size_t a = c * rings + r, b = a + rings;
+      if (std::isnan(cast[a]) || std::isnan(cast[b])) continue;
+      const float near = std::min(cast[a], cast[b]), far = std::max(cast[a], cast[b]);
+      if (far - near < std::max(1.0f, 0.2f * near)) continue;
+      BeamRandom random(seed ^ kMixStream, stamp, static_cast<int>(r), static_cast<int>(c));
+      if (random.uniform() >= model.mixed_pixel_rate) continue;
+      BeamReturn& merged = random.uniform() < 0.5f ? returns[a] : returns[b];
+      merged.range = near + (0.15f + 0.7f * random.uniform()) * (far - near);
     }
   }
 }
@@ -406,7 +496,10 @@ core::PointCloud ScanSimulator::Impl::collect(std::span<const BeamReturn> return
     for (int ring = 0; ring < beams.rings; ++ring, ++beam) {
       const BeamReturn& b = returns[beam];
       if (std::isnan(b.range)) continue;
-      cloud.points.push_back(beams.directions[beam] * b.range);
+      cloud.points.push_back((b.azimuth_jitter == 0.0f
+                                  ? beams.directions[beam]
+                                  : turnedAboutZ(beams.directions[beam], b.azimuth_jitter)) *
+                             b.range);
       cloud.intensity.push_back(b.intensity);
       cloud.time.push_back(time);
       cloud.ring.push_back(static_cast<std::uint16_t>(ring));
@@ -449,6 +542,7 @@ core::PointCloud ScanSimulator::scan(const core::Trajectory& T_world_sensor, dou
   } else {
     for (int block = 0; block < blocks; ++block) cast_block(block);
   }
+  impl_->mixDepthEdges(returns, stamp, seed);
   return impl_->collect(returns);
 }
 

@@ -905,6 +905,29 @@ class Simulate(unittest.TestCase):
         self.assertAlmostEqual(result["realtime_factor"], result["scans_per_s"] / 10.0)
 
 
+    def test_bench_sensor_holds_simulated_sweeps_to_real_ones(self):
+        run("simulate", "--preset", "demo", "--robots", "1", "--max-scans", "60",
+            "--sensor", "hdl64", "--out", self.path("ds"))
+        _, out, _ = run("bench", "sensor", "--dataset", self.path("ds"), "--scans", "2",
+                        "--data", DATA, "--json")
+        result = json.loads(out)
+        self.assertEqual(result["real_scans"], 10)
+        self.assertEqual(result["simulated_scans"], 2)
+        rows = {row["statistic"]: row for row in result["statistics"]}
+        noise = rows["plane noise 2-10 m (m)"]
+        self.assertLess(noise["real"][0], noise["real"][1])
+        self.assertGreater(noise["simulated_median"], 0.005)
+        names = [line["trajectory"] for line in result["vehicle"]]
+        self.assertEqual(names, ["real KITTI 00", "real KITTI 05", "real KITTI 08", "simulated a"])
+        self.assertGreater(result["vehicle"][0]["pitch_sigma_deg"], 0.1)
+        # A folder without scans is named.
+        os.makedirs(self.path("empty"))
+        code, _, err = run("bench", "sensor", "--dataset", self.path("ds"), "--real",
+                           self.path("empty"), check=False)
+        self.assertNotEqual(code, 0)
+        self.assertIn(self.path("empty"), err)
+        self.assertIn("holds no scan", err)
+
     def test_bench_system_runs_each_preset_in_every_seed(self):
         work, table = self.path("work"), self.path("system.md")
         _, out, _ = run("bench", "system", "--datasets", "demo", "--scale", "none", "--seeds",

@@ -19,9 +19,18 @@ TEST(LidarModel, Hdl64HasKittiGeometry) {
   EXPECT_EQ(m.columns, 2000);
   EXPECT_DOUBLE_EQ(m.rate_hz, 10.0);
   EXPECT_DOUBLE_EQ(m.max_range, 120.0);
-  EXPECT_DOUBLE_EQ(m.range_noise_sigma, 0.02);
+  // Range noise from about 1.5 cm near to 3.5 cm far, as KITTI's sweeps show
+  // against local planes (test_realism.cpp holds the scans to them).
+  const auto sigma_at = [&](double r) {
+    return std::min(m.range_noise_sigma + m.range_noise_per_m * r, m.range_noise_max);
+  };
+  EXPECT_GT(sigma_at(5.0), 0.01);
+  EXPECT_LT(sigma_at(5.0), 0.02);
+  EXPECT_GT(sigma_at(40.0), 2.0 * sigma_at(5.0) - 1e-9);
+  EXPECT_LE(sigma_at(100.0), 0.04);
   EXPECT_GT(m.dropout, 0.0);
   EXPECT_LT(m.dropout, 0.1);
+  EXPECT_GT(m.dark_dropout, m.dropout);  // weak echoes fade first
   EXPECT_DOUBLE_EQ(m.mount_height, 1.73);
   EXPECT_EQ(m.raysPerScan(), 128000u);
   EXPECT_DOUBLE_EQ(m.sweepDuration(), 0.1);

@@ -10,6 +10,11 @@
 // [0,5) 0.06-0.12, [5,10) 0.42-0.53, [10,20) 0.26-0.33, [20,40) 0.08-0.14,
 // [40,80) 0.018-0.042, nothing past 80 m. The number of returns is held to the
 // issue's 100k-130k.
+//
+// The second test holds the sensor's imperfections (eval/scan_statistics.hpp:
+// range noise against a local plane by range, mixed pixels, return rate by
+// incidence and intensity, the spread of intensities, firing jitter) to the
+// band of the same real scans, widened by each statistic's stated tolerance.
 
 #include <algorithm>
 #include <array>
@@ -21,6 +26,7 @@
 
 #include <gtest/gtest.h>
 
+#include <dcl/eval/scan_statistics.hpp>
 #include <dcl/io/kitti_scan.hpp>
 #include <dcl/sim/scan_simulator.hpp>
 #include <dcl/sim/world_gen.hpp>
@@ -138,6 +144,55 @@ TEST(Realism, CityHdl64ScansMatchRealKittiScans) {
         "intensity %.3f\n",
         at, s.returns, s.ground_share, s.range_share[0], s.range_share[1], s.range_share[2],
         s.range_share[3], s.range_share[4], s.range_share[5], s.mean_intensity);
+  }
+}
+
+/// The statistics of the ten real KITTI 00 scans.
+std::vector<eval::ScanStatistics> realSweepStatistics() {
+  std::vector<eval::ScanStatistics> stats;
+  for (const auto& e :
+       fs::directory_iterator(fs::path(DCL_DATA_DIR) / "lidar_scans/kitti_00/velodyne"))
+    if (e.path().extension() == ".bin")
+      stats.push_back(eval::measureScanStatistics(io::readKittiScan(e.path().string())));
+  return stats;
+}
+
+// Statistics the simulator does not model, and why they stay out of the test:
+// the share of scattered returns depends on how much foliage a street has
+// (the simulated city's spans 0.7-5 %, the real residential street's 4-5 %);
+// KITTI's HDL-64E fires one laser in seven or so half a step off its column,
+// which the simulator's regular columns do not.
+bool notModelled(const std::string& name) {
+  return name.starts_with("scattered") || name.starts_with("half steps");
+}
+
+TEST(Realism, CityHdl64SensorImperfectionsMatchRealKittiScans) {
+  const auto real = realSweepStatistics();
+  ASSERT_EQ(real.size(), 10u);
+  const std::vector<core::Trajectory> routes = {test::kittiExcerpt(300)};
+  const World world = generateCityWorld({routes, test::kMount, 5});
+  const ScanSimulator simulator(world, LidarModel::hdl64());
+  const BeamCalibration unit = BeamCalibration::draw(simulator.model(), 7);
+  const auto distances = routes[0].distances();
+  std::vector<eval::ScanStatistics> simulated;
+  for (const double at : {40.0, 90.0, 140.0, 190.0, 240.0}) {
+    const auto i = static_cast<std::size_t>(
+        std::lower_bound(distances.begin(), distances.end(), at) - distances.begin());
+    simulated.push_back(
+        eval::measureScanStatistics(simulator.scan(routes[0], routes[0].stamp(i), 100 + i, unit)));
+  }
+  for (const auto& row : eval::statisticRows()) {
+    const eval::StatisticBand band = eval::bandOf(row, real);
+    std::vector<double> values;
+    for (const auto& s : simulated) values.push_back(row.value(s));
+    std::sort(values.begin(), values.end());
+    const double median = values[values.size() / 2];
+    std::printf("%-34s real %.4f-%.4f  simulated median %.4f\n", row.name.c_str(), band.lo, band.hi,
+                median);
+    if (notModelled(row.name)) continue;
+    EXPECT_TRUE(band.contains(median, row.tolerance))
+        << row.name << ": simulated median " << median << " outside the real band [" << band.lo
+        << ", " << band.hi << "] +/- " << row.tolerance;
   }
 }
 

@@ -20,8 +20,26 @@ struct LidarModel {
   double rate_hz = 10.0;               ///< revolutions per second
   double min_range = 0.9;              ///< m, closer returns are dropped
   double max_range = 120.0;            ///< m, no return past this
-  double range_noise_sigma = 0.02;     ///< m, Gaussian range noise
-  double dropout = 0.03;               ///< share of beams that return nothing at random
+  double range_noise_sigma = 0.02;     ///< m, Gaussian range noise at zero range
+  /// Growth of the range noise with range: its sigma at range r is
+  /// min(range_noise_sigma + range_noise_per_m * r, range_noise_max).
+  double range_noise_per_m = 0.0;
+  double range_noise_max = 1.0;  ///< m
+  double dropout = 0.03;         ///< share of beams that return nothing at random
+  /// Weak echoes fade: a return of noiseless intensity 0 is lost with this
+  /// probability on top of `dropout`, falling linearly to none at `dark_intensity`.
+  double dark_dropout = 0.0;
+  double dark_intensity = 0.1;
+  /// Chance that a beam whose footprint straddles a depth edge (the next beam
+  /// of its ring returns more than a metre and 20 % nearer or farther) reports
+  /// a range between the two surfaces, as the echoes of both merge.
+  double mixed_pixel_rate = 0.0;
+  /// Mean depth (m, exponential) a beam goes into foliage before it returns:
+  /// leaves scatter the returns of a crown or hedge through its outer layer.
+  double foliage_depth = 0.0;
+  /// deg, Gaussian jitter of each firing's azimuth (the lasers' timing); the
+  /// point is reported along the azimuth it was really fired at.
+  double azimuth_jitter_deg = 0.0;
   /// What a unit's factory calibration leaves: each laser's true elevation
   /// and range zero deviate from the published table by a fixed amount, drawn
   /// once per unit (BeamCalibration) with these standard deviations. The
