@@ -225,6 +225,8 @@ ScanStatistics measureScanStatistics(const core::PointCloud& scan) {
   for (std::size_t b = 0; b < fired_i.size(); ++b)
     s.return_rate_by_incidence[b] = fired_i[b] > 0 ? returned_i[b] / fired_i[b] : std::nan("");
   if (scan.hasIntensity()) {
+    s.mean_intensity =
+        std::accumulate(scan.intensity.begin(), scan.intensity.end(), 0.0) / static_cast<double>(n);
     std::size_t within = 0;
     for (std::size_t i = 0; i < n; ++i) {
       if (range[i] > 40.0) continue;
@@ -307,6 +309,7 @@ std::span<const StatisticRow> statisticRows() {
        0.03},
       {"returns of intensity > 0.3", [](const ScanStatistics& s) { return s.intensity_share[2]; },
        0.03},
+      {"mean intensity", [](const ScanStatistics& s) { return s.mean_intensity; }, 0.03},
       {"scattered returns, 2-30 m", [](const ScanStatistics& s) { return s.scattered_share; },
        0.01},
       {"half steps along a ring", [](const ScanStatistics& s) { return s.half_step_share; }, 0.01},

@@ -31,10 +31,12 @@ double gaussian(detail::Rng& random) {
 /// The imperfections of a Velodyne's returns, each brought within the band of
 /// the real KITTI 00 HDL-64E sweeps in the shared data (`dcl-slam bench
 /// sensor`, BENCHMARKS.md "Sensor against real scans"): range noise growing
-/// from 1.2 cm near to 3.5 cm at 23 m and beyond, one firing in 250 lost at
-/// random and one dark echo in ten, a tenth of the beams at depth edges mixed,
-/// returns from up to a metre inside foliage, and 0.003 deg of firing-time
-/// jitter. The VLP-16 shares them (no real VLP-16 sweep to measure).
+/// from 1.2 cm near to 3.5 cm at 23 m and beyond, one firing in 330 lost at
+/// random and up to 30 % of the darkest echoes (below intensity 0.08), one
+/// beam in twenty at a depth edge mixed, and 0.003 deg of firing-time jitter.
+/// Foliage stays solid (foliage_depth 0): a beam going into crowns drifts the
+/// odometry upwards, by how much in the world is not measured yet. The VLP-16
+/// shares them (no real VLP-16 sweep to measure).
 void applyMeasuredImperfections(LidarModel& model) {
   model.range_noise_sigma = 0.012;
   model.range_noise_per_m = 0.001;

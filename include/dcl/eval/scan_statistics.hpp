@@ -53,6 +53,8 @@ struct ScanStatistics {
   /// Share of the returns within 40 m in each intensity bin (the spread of the
   /// surfaces' reflectivity that the return rate by intensity rests on).
   std::array<double, kIntensityEdges.size() - 1> intensity_share{};
+  /// Mean intensity of all the returns.
+  double mean_intensity = 0.0;
   /// Share of the returns from 2 to 30 m whose 12 nearest neighbours fit no
   /// surface: surface variation lambda3 / (lambda1 + lambda2 + lambda3) above 0.05.
   double scattered_share = 0.0;
