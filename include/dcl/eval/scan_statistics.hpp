@@ -56,7 +56,7 @@ struct ScanStatistics {
   /// Mean intensity of all the returns.
   double mean_intensity = 0.0;
   /// Share of the returns from 2 to 30 m whose 12 nearest neighbours fit no
-  /// surface: surface variation lambda3 / (lambda1 + lambda2 + lambda3) above 0.05.
+  /// surface: their RMS distance to their own plane is above 5 cm.
   double scattered_share = 0.0;
   /// Share of the steps along a ring shorter than 0.7 of the nominal step.
   double half_step_share = 0.0;
