@@ -70,23 +70,29 @@ struct SystemOptions {
   int threads = 0;
   double settle = swarm::SwarmConfig{}.settle;  ///< s at most after the data while robots optimise
   double range = 0.0;    ///< m, the radio's range (0: unlimited, as in the paper)
+  double traffic = 0.0;  ///< moving actors, times each world's own traffic (0: none)
   std::string markdown;  ///< where to write the tables as Markdown too
   bool json = false;
 };
 
 /// The dataset of `preset` in `folder`, simulated unless it is already there.
-std::string ensureDataset(const std::string& preset, int robots, std::uint64_t seed,
+std::string ensureDataset(const std::string& preset, int robots, std::uint64_t seed, double traffic,
                           const std::string& folder, const std::string& data) {
   if (fs::exists(fs::path(folder) / "dataset.yaml")) return folder;
   sim::writeSimDataset(folder,
-                       sim::makePreset(preset, {.data_dir = data, .seed = seed, .robots = robots}));
+                       sim::makePreset(preset, {.data_dir = data, .seed = seed, .robots = robots}),
+                       {.traffic = traffic});
   return folder;
 }
 
 /// The name of a preset's run in `seed`'s world: the preset's own for seed 1
-/// (the presets' default), "<preset>-s<seed>" for the others.
-std::string runName(const std::string& preset, std::uint64_t seed) {
-  return seed == 1 ? preset : fmt::format("{}-s{}", preset, seed);
+/// (the presets' default), "<preset>-s<seed>" for the others, and
+/// "-t<density>" after it with traffic, so that worlds with and without
+/// traffic keep their own folders.
+std::string runName(const std::string& preset, std::uint64_t seed, double traffic) {
+  std::string name = seed == 1 ? preset : fmt::format("{}-s{}", preset, seed);
+  if (traffic > 0.0) name += fmt::format("-t{:g}", traffic);
+  return name;
 }
 
 std::optional<double> number(const Json& value) {
@@ -315,7 +321,7 @@ std::string tables(const std::vector<DatasetRun>& runs, const std::vector<Datase
 DatasetRun runOne(const std::string& preset, int robots, std::uint64_t seed,
                   const std::string& name, const SystemOptions& o, const AppConfig& config) {
   const std::string folder =
-      ensureDataset(preset, robots, seed, (fs::path(o.work) / name).string(), o.data);
+      ensureDataset(preset, robots, seed, o.traffic, (fs::path(o.work) / name).string(), o.data);
   AppConfig c = config;
   c.radio.range = o.range;
   const auto start = std::chrono::steady_clock::now();
@@ -335,6 +341,8 @@ void runSystem(const SystemOptions& o, const AppConfig& config) {
   if (o.threads < 0) throw core::Error("--threads must be at least 0");
   if (!(o.range >= 0.0)) throw core::Error("--range must be zero (unlimited) or positive");
   if (o.seeds.empty()) throw core::Error("--seeds needs at least one seed");
+  if (!(o.traffic >= 0.0 && o.traffic <= 10.0))
+    throw core::Error("--traffic must be between 0 (none) and 10");
   for (const std::string& name : o.datasets) {
     if (name == "none") continue;
     sim::makePreset(name, {.data_dir = o.data});  // an unknown name or missing data: fail early
@@ -344,12 +352,13 @@ void runSystem(const SystemOptions& o, const AppConfig& config) {
   for (const std::uint64_t seed : o.seeds) {
     for (const std::string& preset : o.datasets) {
       if (preset == "none") continue;
-      runs.push_back(runOne(preset, 0, seed, runName(preset, seed), o, config));
+      runs.push_back(runOne(preset, 0, seed, runName(preset, seed, o.traffic), o, config));
     }
     if (o.scale != "none") {
       const std::string preset =
           o.scale_robots > 0 ? fmt::format("{}-{}", o.scale, o.scale_robots) : o.scale;
-      scales.push_back(runOne(o.scale, o.scale_robots, seed, runName(preset, seed), o, config));
+      scales.push_back(
+          runOne(o.scale, o.scale_robots, seed, runName(preset, seed, o.traffic), o, config));
       scales.back().preset = preset + " (large team)";
     }
   }
@@ -418,6 +427,10 @@ void addBenchSystemCommand(CLI::App& bench, const AppConfig& config) {
       ->capture_default_str();
   cmd->add_option("--range", o->range,
                   "m, communication range (0: unlimited, the paper's assumption)")
+      ->capture_default_str();
+  cmd->add_option("--traffic", o->traffic,
+                  "moving cars, cyclists and pedestrians, and cars parked for a while, in every "
+                  "world: this times the world's own traffic (0: none; the folders get -t<D>)")
       ->capture_default_str();
   cmd->add_option("--markdown", o->markdown, "also write the tables to this file");
   cmd->add_flag("--json", o->json, "print every run's metrics and summary as JSON");

@@ -952,6 +952,20 @@ class Simulate(unittest.TestCase):
         self.assertNotEqual(code, 0)
         self.assertIn("--seeds", err)
 
+    def test_bench_system_puts_traffic_in_worlds_of_their_own(self):
+        work = self.path("work")
+        _, out, _ = run("bench", "system", "--datasets", "demo", "--scale", "none",
+                        "--max-frames", "20", "--threads", "2", "--traffic", "1", "--work",
+                        work, "--json")
+        self.assertEqual([r["summary"]["dataset"] for r in json.loads(out)["datasets"]],
+                         ["demo-t1"])
+        with open(os.path.join(work, "demo-t1", "dataset.yaml")) as f:
+            self.assertRegex(f.read(), r"\n  traffic: 1\b")
+        code, _, err = run("bench", "system", "--datasets", "demo", "--traffic", "11", "--work",
+                           work, check=False)
+        self.assertNotEqual(code, 0)
+        self.assertIn("--traffic", err)
+
 
 class Place(DemoDataset):
     """dcl-slam bench place: inter-robot place recognition on the demo swarm."""
