@@ -38,11 +38,16 @@ double robustSigma(std::vector<double>& v) {
   return 1.4826 * *mid;
 }
 
-double median(std::vector<double> v) {
+/// The value below which a share `q` of `v` lies (nearest rank). NaN when empty.
+double quantile(std::vector<double> v, double q) {
   if (v.empty()) return std::nan("");
-  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
-  std::nth_element(v.begin(), mid, v.end());
-  return *mid;
+  const auto at = v.begin() + static_cast<std::ptrdiff_t>(static_cast<double>(v.size() - 1) * q);
+  std::nth_element(v.begin(), at, v.end());
+  return *at;
+}
+
+double median(std::vector<double> v) {
+  return quantile(std::move(v), 0.5);
 }
 
 template <std::size_t N>
@@ -138,13 +143,14 @@ ScanStatistics measureScanStatistics(const core::PointCloud& scan) {
 
   // Plane noise by range, and scattered returns.
   std::array<std::vector<double>, kNoiseRangeEdges.size() - 1> residuals;
-  std::size_t near = 0, scattered = 0;
+  std::size_t near = 0;
+  std::vector<double> scattered;
   for (std::size_t i = 0; i < n; ++i) {
     const Patch& patch = patches[i];
     if (!patch.valid) continue;
     if (range[i] <= 30.0) {
       ++near;
-      scattered += patch.rms > kScatterRms;
+      if (patch.rms > kScatterRms) scattered.push_back(patch.rms);
     }
     if (patch.spread && patch.rms <= kScatterRms && patch.incidence_deg < 45.0) {
       const std::size_t band = binOf(kNoiseRangeEdges, range[i]);
@@ -153,7 +159,9 @@ ScanStatistics measureScanStatistics(const core::PointCloud& scan) {
     }
   }
   for (std::size_t b = 0; b < residuals.size(); ++b) s.plane_noise[b] = robustSigma(residuals[b]);
-  s.scattered_share = near > 0 ? static_cast<double>(scattered) / static_cast<double>(near) : 0.0;
+  s.scattered_share =
+      near > 0 ? static_cast<double>(scattered.size()) / static_cast<double>(near) : 0.0;
+  s.scattered_depth = quantile(std::move(scattered), 0.9);
 
   // The firing pattern along the rings.
   std::vector<double> steps;
@@ -312,6 +320,8 @@ std::span<const StatisticRow> statisticRows() {
       {"mean intensity", [](const ScanStatistics& s) { return s.mean_intensity; }, 0.03},
       {"scattered returns, 2-30 m", [](const ScanStatistics& s) { return s.scattered_share; },
        0.01},
+      {"scattered returns' depth, 90th percentile (m)",
+       [](const ScanStatistics& s) { return s.scattered_depth; }, 0.01},
       {"half steps along a ring", [](const ScanStatistics& s) { return s.half_step_share; }, 0.01},
       {"step jitter (of the step)", [](const ScanStatistics& s) { return s.step_jitter; }, 0.005},
   };

@@ -24,6 +24,7 @@ struct SweepRecipe {
   double noise = 0.02;     ///< m, Gaussian range noise
   double dropout = 0.0;    ///< share of firings that return nothing, at random
   bool mixed = false;      ///< the firing at each edge of the pillar returns between the surfaces
+  double foliage = 0.0;    ///< m, mean (exponential) depth the pillar's returns lie behind it
   bool with_rings = true;  ///< store the ring (otherwise rely on the order, as a KITTI .bin)
   unsigned seed = 1;
 };
@@ -54,7 +55,9 @@ core::PointCloud syntheticSweep(const SweepRecipe& recipe) {
       plane(d.y(), d.y() > 0 ? 12.0 : -8.0);
       plane(d.z(), d.z() > 0 ? 6.0 : -1.7);
       const double pillar = 3.05 * M_PI / 180.0;  // edges between column centres
-      if (std::abs(azimuth) < pillar && d.z() * 6.0 / d.x() > -1.7) range = 6.0 / d.x();
+      if (std::abs(azimuth) < pillar && d.z() * 6.0 / d.x() > -1.7)
+        range = 6.0 / d.x() -
+                (recipe.foliage > 0.0 ? recipe.foliage * std::log(1.0 - uniform(rng)) : 0.0);
       if (recipe.mixed && std::abs(std::abs(azimuth) - pillar) < M_PI / kColumns)
         range = 0.5 * (6.0 / d.x() + range);
       if (uniform(rng) < recipe.dropout) continue;
@@ -96,6 +99,22 @@ TEST(ScanStatistics, MixedPixelsAreFoundAtDepthEdgesOnly) {
   EXPECT_GT(mixed.mixed_pixel_share, 0.9);
   // Flat walls and floor: nothing scattered, whatever the edges.
   EXPECT_LT(clean.scattered_share, 0.03);
+}
+
+TEST(ScanStatistics, ScatteredReturnsSpreadAsDeepAsBeamsGoIntoFoliage) {
+  const ScanStatistics solid = measureScanStatistics(syntheticSweep({.noise = 0.01}));
+  const ScanStatistics shallow =
+      measureScanStatistics(syntheticSweep({.noise = 0.01, .foliage = 0.1}));
+  const ScanStatistics deep =
+      measureScanStatistics(syntheticSweep({.noise = 0.01, .foliage = 0.4}));
+  // The pillar is about a seventieth of the returns. A return's nearest
+  // neighbours are those at its own depth, so a shallow crown scatters only
+  // some of them; deeper ones scatter more, and further.
+  EXPECT_LT(solid.scattered_share, 0.002);
+  EXPECT_GT(shallow.scattered_share, 1.5 * solid.scattered_share);
+  EXPECT_GT(deep.scattered_share, 3.0 * shallow.scattered_share);
+  EXPECT_GT(shallow.scattered_depth, 0.05);  // above the threshold that makes them scattered
+  EXPECT_GT(deep.scattered_depth, shallow.scattered_depth + 0.02);
 }
 
 TEST(ScanStatistics, RingsFromThePointOrderGiveTheSameStatistics) {

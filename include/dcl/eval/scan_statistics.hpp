@@ -58,6 +58,10 @@ struct ScanStatistics {
   /// Share of the returns from 2 to 30 m whose 12 nearest neighbours fit no
   /// surface: their RMS distance to their own plane is above 5 cm.
   double scattered_share = 0.0;
+  /// The 90th percentile of those neighbourhoods' RMS distance to their own
+  /// plane, m: how deep the returns of the most scattering surfaces (a
+  /// crown's foliage) wander along their beams, rather than how many there are.
+  double scattered_depth = 0.0;
   /// Share of the steps along a ring shorter than 0.7 of the nominal step.
   double half_step_share = 0.0;
   /// Robust spread of the steps along a ring within 20 % of the nominal one,
