@@ -38,10 +38,13 @@ double robustSigma(std::vector<double>& v) {
   return 1.4826 * *mid;
 }
 
-/// The value below which a share `q` of `v` lies (nearest rank). NaN when empty.
+/// The element of rank floor(q * size) of `v` (the upper middle for q = 0.5).
+/// NaN when empty.
 double quantile(std::vector<double> v, double q) {
   if (v.empty()) return std::nan("");
-  const auto at = v.begin() + static_cast<std::ptrdiff_t>(static_cast<double>(v.size() - 1) * q);
+  const auto rank =
+      std::min(static_cast<std::size_t>(static_cast<double>(v.size()) * q), v.size() - 1);
+  const auto at = v.begin() + static_cast<std::ptrdiff_t>(rank);
   std::nth_element(v.begin(), at, v.end());
   return *at;
 }
