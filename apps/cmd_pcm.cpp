@@ -62,16 +62,12 @@ Json counts(const backend::PcmResult& result,
   return j;
 }
 
-std::string keyName(const core::PoseKey& key) {
-  return core::robotName(key.robot) + std::to_string(key.keyframe.value());
-}
-
 /// Loops as "a12-b3" (lower robot first), in key order.
 Json loopNames(const std::vector<backend::Factor>& loops) {
   Json names = Json::array();
   for (const backend::Factor& f : loops) {
     const backend::LoopId id = backend::loopId(f);
-    names.push_back(keyName(id.first) + "-" + keyName(id.second));
+    names.push_back(core::keyName(id.first) + "-" + core::keyName(id.second));
   }
   return names;
 }

@@ -7,7 +7,6 @@
 #include <filesystem>
 #include <memory>
 #include <optional>
-#include <regex>
 #include <string>
 #include <vector>
 
@@ -94,10 +93,15 @@ Described describeDataset(const io::DatasetSpec& spec, const place::Descriptor& 
 }
 
 /// The KITTI sequence a dataset was split from ("kitti05-3" -> "05"), if any.
+/// Its first "kitti" followed by two digits, with one '_' or '-' between or none.
 std::optional<std::string> kittiSequence(const std::string& name) {
-  static const std::regex pattern("kitti[_-]?(\\d\\d)");
-  std::smatch m;
-  if (std::regex_search(name, m, pattern)) return m[1].str();
+  const auto digit = [](char c) { return c >= '0' && c <= '9'; };
+  for (std::size_t at = name.find("kitti"); at != std::string::npos;
+       at = name.find("kitti", at + 1)) {
+    std::size_t i = at + 5;
+    if (i < name.size() && (name[i] == '_' || name[i] == '-')) ++i;
+    if (i + 1 < name.size() && digit(name[i]) && digit(name[i + 1])) return name.substr(i, 2);
+  }
   return std::nullopt;
 }
 

@@ -40,6 +40,17 @@ function(dcl_use_precompiled_headers target)
   endif()
 endfunction()
 
+# dcl_unity_batches(<target> <size>): <target>'s files compile <size> to a
+# translation unit (0: all in one), which parses the headers and instantiates
+# the templates they share once per batch instead of once per file. File-local
+# names must then differ between the files of a target. GCC warns when a
+# class of one file holds a type of that file's anonymous namespace, as most
+# pImpl classes do, once the file is included by the batch: not a defect.
+function(dcl_unity_batches target size)
+  set_target_properties(${target} PROPERTIES UNITY_BUILD ON UNITY_BUILD_BATCH_SIZE ${size})
+  target_compile_options(${target} PRIVATE $<$<CXX_COMPILER_ID:GNU>:-Wno-subobject-linkage>)
+endfunction()
+
 # dcl_add_module(<name> SOURCES ... [PUBLIC_DEPS ...] [PRIVATE_DEPS ...])
 # Makes the library target dcl_<name> with the alias dcl::<name>.
 function(dcl_add_module name)
@@ -50,6 +61,9 @@ function(dcl_add_module name)
   target_link_libraries(dcl_${name} PUBLIC ${ARG_PUBLIC_DEPS} PRIVATE ${ARG_PRIVATE_DEPS})
   dcl_set_options(dcl_${name})
   dcl_use_precompiled_headers(dcl_${name})
+  if(DCL_UNITY)
+    dcl_unity_batches(dcl_${name} ${DCL_UNITY_BATCH})
+  endif()
 endfunction()
 
 # dcl_add_test(<name> SOURCES ... DEPS ...): a GoogleTest executable whose cases ctest lists.

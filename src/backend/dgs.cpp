@@ -23,10 +23,6 @@ constexpr double kMaxTranslation = 1e9;
 /// How far from orthonormal a stage-2 rotation from a neighbour may be.
 constexpr double kRotationTolerance = 1e-6;
 
-std::string keyName(const core::PoseKey& key) {
-  return core::robotName(key.robot) + std::to_string(key.keyframe.value());
-}
-
 /// Stage index for the per-stage state: 0 rotation, 1 pose.
 int stageIndex(DgsStage stage) {
   return stage == DgsStage::pose ? 1 : 0;
@@ -551,7 +547,7 @@ PoseGraph splitIntoRobots(const PoseGraph& graph, int robots) {
     const auto from = rekey.find(f.from);
     const auto to = rekey.find(f.to);
     if (from == rekey.end() || to == rekey.end()) {
-      throw core::Error("split: factor " + keyName(f.from) + " -> " + keyName(f.to) +
+      throw core::Error("split: factor " + core::keyName(f.from) + " -> " + core::keyName(f.to) +
                         " names a node the graph does not hold");
     }
     Factor g = f;

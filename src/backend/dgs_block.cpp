@@ -13,10 +13,6 @@ namespace {
 
 using Triplets = std::vector<Eigen::Triplet<double>>;
 
-std::string keyName(const core::PoseKey& key) {
-  return core::robotName(key.robot) + std::to_string(key.keyframe.value());
-}
-
 /// Union-find over node indices, for the components a layout holds.
 class Components {
  public:
@@ -97,8 +93,8 @@ Block::Block(std::vector<core::PoseKey> keys, const std::vector<Factor>& factors
     if (e.from < 0 && e.to < 0) continue;
     e.R = f.T_from_to.linear();
     e.t = f.T_from_to.translation();
-    e.w = isotropicWeights(f.information,
-                           what + ": factor " + keyName(f.from) + " -> " + keyName(f.to));
+    e.w = isotropicWeights(
+        f.information, what + ": factor " + core::keyName(f.from) + " -> " + core::keyName(f.to));
     if (e.from >= 0 && e.to >= 0) {
       internal_.push_back(e);
     } else {

@@ -13,10 +13,6 @@ namespace {
 /// Smallest eigenvalue a cycle's covariance is given when rounding made it indefinite.
 constexpr double kMinVariance = 1e-12;
 
-std::string keyName(const core::PoseKey& key) {
-  return core::robotName(key.robot) + std::to_string(key.keyframe.value());
-}
-
 /// A Sigma A^T.
 core::Matrix6d transported(const core::Matrix6d& A, const core::Matrix6d& sigma) {
   return A * sigma * A.transpose();
@@ -68,9 +64,10 @@ double cycleDistance(const Factor& loop_1, const Factor& loop_2, const Trajector
                      const TrajectoryTree& robot_b) {
   for (const Factor* loop : {&loop_1, &loop_2}) {
     if (loop->from.robot != robot_a.robot() || loop->to.robot != robot_b.robot()) {
-      throw core::Error(fmt::format(
-          "PCM: loop {} -> {} is not from robot {} to robot {}", keyName(loop->from),
-          keyName(loop->to), core::robotName(robot_a.robot()), core::robotName(robot_b.robot())));
+      throw core::Error(fmt::format("PCM: loop {} -> {} is not from robot {} to robot {}",
+                                    core::keyName(loop->from), core::keyName(loop->to),
+                                    core::robotName(robot_a.robot()),
+                                    core::robotName(robot_b.robot())));
     }
   }
   const core::Matrix6d sigma_2 = covarianceOf(loop_2.information);
@@ -108,7 +105,7 @@ PairwiseConsistency::Candidate PairwiseConsistency::candidateOf(const Factor& lo
   if (id.first.robot != robot_a_.robot() || id.second.robot != robot_b_.robot()) {
     throw core::Error(fmt::format(
         "PCM {}-{}: loop {} -> {} is not between these robots", core::robotName(robot_a_.robot()),
-        core::robotName(robot_b_.robot()), keyName(loop.from), keyName(loop.to)));
+        core::robotName(robot_b_.robot()), core::keyName(loop.from), core::keyName(loop.to)));
   }
   Candidate c{loop.from.robot == robot_a_.robot() ? loop : invertFactor(loop),
               core::Matrix6d::Zero(), core::Matrix6d::Zero(), std::nullopt};

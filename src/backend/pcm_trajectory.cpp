@@ -12,19 +12,15 @@ namespace {
 /// Smallest information eigenvalue used when inverting an information matrix.
 constexpr double kMinInformation = 1e-12;
 
-std::string keyName(const core::PoseKey& key) {
-  return core::robotName(key.robot) + std::to_string(key.keyframe.value());
-}
-
 /// A Sigma A^T, symmetrised.
-core::Matrix6d transported(const core::Matrix6d& A, const core::Matrix6d& sigma) {
+core::Matrix6d transportedSymmetric(const core::Matrix6d& A, const core::Matrix6d& sigma) {
   const core::Matrix6d m = A * sigma * A.transpose();
   return 0.5 * (m + m.transpose());
 }
 
 /// T^-1 and its covariance, Ad(T) Sigma Ad(T)^T.
 RelativePose inverted(const RelativePose& p) {
-  return {p.T_i_j.inverse(), transported(core::adjoint(p.T_i_j), p.covariance)};
+  return {p.T_i_j.inverse(), transportedSymmetric(core::adjoint(p.T_i_j), p.covariance)};
 }
 
 }  // namespace
@@ -44,7 +40,7 @@ TrajectoryTree::TrajectoryTree(core::RobotId robot, core::KeyframeId origin, boo
 void TrajectoryTree::add(const Factor& factor) {
   const auto describe = [&] {
     return fmt::format("trajectory of robot {}: factor {} -> {}", core::robotName(robot_),
-                       keyName(factor.from), keyName(factor.to));
+                       core::keyName(factor.from), core::keyName(factor.to));
   };
   if (factor.from.robot != robot_ || factor.to.robot != robot_) {
     throw core::Error(describe() + " is not between two of its keyframes");
@@ -110,7 +106,8 @@ void TrajectoryTree::attach(std::uint64_t keyframe, std::uint32_t parent, const 
   Node n{.keyframe = keyframe,
          .parent_keyframe = p.keyframe,
          .T_origin_k = p.T_origin_k * edge.T,
-         .covariance = transported(core::adjoint(edge.T.inverse()), p.covariance) + edge.covariance,
+         .covariance =
+             transportedSymmetric(core::adjoint(edge.T.inverse()), p.covariance) + edge.covariance,
          .depth = p.depth + 1};
   n.up[0] = parent;
   for (std::size_t l = 1; l < kLevels; ++l) n.up[l] = nodes_[n.up[l - 1]].up[l - 1];
@@ -161,7 +158,7 @@ RelativePose TrajectoryTree::fromAncestor(std::uint32_t ancestor, std::uint32_t 
   const Node& a = nodes_[ancestor];
   const Node& n = nodes_[node];
   const Eigen::Isometry3d T_a_n = a.T_origin_k.inverse() * n.T_origin_k;
-  return {T_a_n, n.covariance - transported(core::adjoint(T_a_n.inverse()), a.covariance)};
+  return {T_a_n, n.covariance - transportedSymmetric(core::adjoint(T_a_n.inverse()), a.covariance)};
 }
 
 RelativePose TrajectoryTree::relative(core::KeyframeId i, core::KeyframeId j) const {
@@ -172,8 +169,9 @@ RelativePose TrajectoryTree::relative(core::KeyframeId i, core::KeyframeId j) co
   const std::uint32_t c = lowestCommonAncestor(ni, nj);
   const RelativePose i_c = inverted(fromAncestor(c, ni));
   const RelativePose c_j = fromAncestor(c, nj);
-  return {i_c.T_i_j * c_j.T_i_j,
-          transported(core::adjoint(c_j.T_i_j.inverse()), i_c.covariance) + c_j.covariance};
+  return {
+      i_c.T_i_j * c_j.T_i_j,
+      transportedSymmetric(core::adjoint(c_j.T_i_j.inverse()), i_c.covariance) + c_j.covariance};
 }
 
 }  // namespace dcl::backend

@@ -5,13 +5,7 @@
 #include <dcl/core/error.hpp>
 
 namespace dcl::backend {
-namespace {
-
-std::string keyName(const core::PoseKey& key) {
-  return core::robotName(key.robot) + std::to_string(key.keyframe.value());
-}
-
-}  // namespace
+namespace {}  // namespace
 
 std::string_view toString(FactorKind kind) {
   switch (kind) {
@@ -35,13 +29,13 @@ void PoseGraph::addFactor(const Factor& factor) {
 
 const Eigen::Isometry3d& PoseGraph::estimate(const core::PoseKey& key) const {
   const auto it = nodes_.find(key);
-  if (it == nodes_.end()) throw core::Error("pose graph: no node " + keyName(key));
+  if (it == nodes_.end()) throw core::Error("pose graph: no node " + core::keyName(key));
   return it->second;
 }
 
 void PoseGraph::setEstimate(const core::PoseKey& key, const Eigen::Isometry3d& T_world_node) {
   const auto it = nodes_.find(key);
-  if (it == nodes_.end()) throw core::Error("pose graph: no node " + keyName(key));
+  if (it == nodes_.end()) throw core::Error("pose graph: no node " + core::keyName(key));
   it->second = T_world_node;
 }
 

@@ -7,4 +7,8 @@ std::string robotName(RobotId robot) {
   return std::to_string(robot.value());
 }
 
+std::string keyName(const PoseKey& key) {
+  return robotName(key.robot) + std::to_string(key.keyframe.value());
+}
+
 }  // namespace dcl::core

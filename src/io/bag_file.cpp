@@ -42,10 +42,6 @@ constexpr std::uint32_t kMaxChunkBytes = std::uint32_t{1} << 30;
 /// bz2 stream must not unfold into a gigabyte.
 constexpr std::uint64_t kMaxCompressionRatio = 1000;
 
-[[noreturn]] void failAt(const std::string& path, std::uint64_t byte, const std::string& what) {
-  throw FileError(FileLocation{path, std::nullopt, byte, std::nullopt}, what);
-}
-
 /// The fields of a record header (or of a connection record's data):
 /// a sequence of uint32 length + "name=value".
 class Fields {
@@ -167,7 +163,7 @@ void BagFile::readAt(std::uint64_t byte, std::size_t n, std::vector<char>& out) 
   }
   if (n > 0 && !file_.read(out.data(), static_cast<std::streamsize>(n))) {
     file_at_ = kUnknownPosition;
-    failAt(path_, byte, fmt::format("cannot read {} bytes: {}", n, std::strerror(errno)));
+    failAtByte(path_, byte, fmt::format("cannot read {} bytes: {}", n, std::strerror(errno)));
   }
   file_at_ = byte + n;
 }
@@ -178,18 +174,18 @@ void BagFile::scan() {
   const std::string_view start(bytes.data(), bytes.size());
   if (start != kMagic) {
     if (start.starts_with("#ROSBAG V")) {
-      failAt(path_, 0,
-             fmt::format("bag format '{}' is not read, only 2.0 (ROS Groovy and later)",
-                         printable(start.substr(9, start.find('\n') - 9))));
+      failAtByte(path_, 0,
+                 fmt::format("bag format '{}' is not read, only 2.0 (ROS Groovy and later)",
+                             printable(start.substr(9, start.find('\n') - 9))));
     }
-    failAt(path_, 0, "not a ROS1 bag: it does not begin with '#ROSBAG V2.0'");
+    failAtByte(path_, 0, "not a ROS1 bag: it does not begin with '#ROSBAG V2.0'");
   }
   bool header_seen = false;
   std::uint64_t at = kMagic.size();
   std::vector<char> header;
   while (at < file_size_) {
     const std::uint64_t record_at = at;
-    const auto fail = [&](const std::string& what) { failAt(path_, record_at, what); };
+    const auto fail = [&](const std::string& what) { failAtByte(path_, record_at, what); };
     const auto truncated = [&](std::uint64_t needed) {
       fail(fmt::format(
           "truncated: the file ends inside a record ({} bytes short); the recording may have "
@@ -278,13 +274,13 @@ void BagFile::scan() {
     }
     at = data_at + data_size;
   }
-  if (!header_seen) failAt(path_, at, "the bag holds no records (not even its header)");
+  if (!header_seen) failAtByte(path_, at, "the bag holds no records (not even its header)");
   for (std::size_t i = 0; i < messages_.size(); ++i) {
     const auto found = connection_index_.find(message_connection_ids_[i]);
     if (found == connection_index_.end()) {
-      failAt(path_, messages_[i].record_byte,
-             fmt::format("a message on connection {}, which the bag never defines",
-                         message_connection_ids_[i]));
+      failAtByte(path_, messages_[i].record_byte,
+                 fmt::format("a message on connection {}, which the bag never defines",
+                             message_connection_ids_[i]));
     }
     messages_[i].connection = found->second;
   }
@@ -299,9 +295,9 @@ void BagFile::scanChunk(std::size_t index) {
   while (at < content.size()) {
     const std::size_t record_at = at;
     const auto fail = [&](const std::string& what) {
-      failAt(path_, chunk.record_byte,
-             fmt::format("chunk ({}): at byte {} of its content: {}", chunk.compression, record_at,
-                         what));
+      failAtByte(path_, chunk.record_byte,
+                 fmt::format("chunk ({}): at byte {} of its content: {}", chunk.compression,
+                             record_at, what));
     };
     const auto readLength = [&](std::size_t where) {
       if (content.size() - where < 4) fail("a record is cut off by the end of the chunk");
@@ -339,7 +335,7 @@ void BagFile::scanChunk(std::size_t index) {
 void BagFile::addConnection(std::uint32_t id, const std::string& topic, std::span<const char> data,
                             std::uint64_t byte) {
   const auto fail = [&](const std::string& what) {
-    failAt(path_, byte, fmt::format("connection {} ('{}'): {}", id, printable(topic), what));
+    failAtByte(path_, byte, fmt::format("connection {} ('{}'): {}", id, printable(topic), what));
   };
   const Fields fields(data, fail);
   const auto type = fields.find("type");
@@ -361,7 +357,7 @@ void BagFile::loadChunk(std::size_t index) {
   loaded_chunk_ = BagMessage::kNoChunk;
   const Chunk& chunk = chunks_[index];
   const auto fail = [&](const std::string& what) {
-    failAt(path_, chunk.record_byte, fmt::format("chunk ({}): {}", chunk.compression, what));
+    failAtByte(path_, chunk.record_byte, fmt::format("chunk ({}): {}", chunk.compression, what));
   };
   if (chunk.compression == "none") {
     readAt(chunk.data_byte, chunk.data_size, chunk_bytes_);
@@ -426,7 +422,7 @@ std::span<const char> BagFile::read(const BagMessage& message) {
   }
   loadChunk(message.chunk);
   if (message.offset + message.size > chunk_bytes_.size()) {
-    failAt(path_, message.record_byte, "the bag changed while it was read");
+    failAtByte(path_, message.record_byte, "the bag changed while it was read");
   }
   return std::span<const char>(chunk_bytes_).subspan(message.offset, message.size);
 }

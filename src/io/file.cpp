@@ -1,3 +1,4 @@
+#include <array>
 #include <cerrno>
 #include <cstdlib>
 #include <filesystem>
@@ -169,6 +170,21 @@ std::string_view ByteReader::readLine(const char* what) {
 
 void ByteReader::fail(const std::string& what) const {
   throw FileError(FileLocation{path_, std::nullopt, offset_, std::nullopt}, what);
+}
+
+std::string exactText(double value) {
+  std::array<char, 32> buffer{};
+  const auto result = std::to_chars(buffer.data(), buffer.data() + buffer.size(), value);
+  return {buffer.data(), result.ptr};
+}
+
+void failAtLine(const std::string& path, std::size_t line, std::optional<std::string> field,
+                const std::string& what) {
+  throw core::FileError({path, line, std::nullopt, std::move(field)}, what);
+}
+
+void failAtByte(const std::string& path, std::uint64_t byte, const std::string& what) {
+  throw core::FileError({path, std::nullopt, byte, std::nullopt}, what);
 }
 
 }  // namespace dcl::io

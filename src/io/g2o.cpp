@@ -21,8 +21,6 @@ using Tokens = std::vector<std::string_view>;
 using Index = Eigen::Index;
 using Entry = std::pair<int, int>;
 
-/// How far from 1 a printed quaternion's norm may be.
-constexpr double kQuaternionTolerance = 1e-2;
 /// How negative an information eigenvalue may be, relative to the largest
 /// magnitude, and still be the rounding of a printed semi-definite matrix (six
 /// significant digits move an eigenvalue of a 6x6 by up to about 3e-5 of it).
@@ -47,13 +45,6 @@ constexpr std::array<Entry, 21> upperTriangle6() {
   return order;
 }
 constexpr std::array<Entry, 21> kOrder6 = upperTriangle6();
-
-/// The shortest decimal text that reads back to exactly `value`.
-std::string formatNumber(double value) {
-  std::array<char, 32> buffer{};
-  const auto result = std::to_chars(buffer.data(), buffer.data() + buffer.size(), value);
-  return {buffer.data(), result.ptr};
-}
 
 std::string infoName(const Entry& e) {
   // Appended piece by piece: GCC 12 warns (falsely) on `"I" + std::to_string(...)`.
@@ -173,7 +164,7 @@ Eigen::Quaterniond Parser::quaternion(const Tokens& t, std::size_t first) const 
   const Eigen::Quaterniond q(number(t[first + 3], "qw"), xyz.x(), xyz.y(), xyz.z());
   const double norm = q.norm();
   if (std::abs(norm - 1.0) > kQuaternionTolerance) {
-    in_.fail("quaternion norm " + formatNumber(norm) + " is not 1 (corrupt line?)");
+    in_.fail("quaternion norm " + exactText(norm) + " is not 1 (corrupt line?)");
   }
   return q;
 }
@@ -204,8 +195,8 @@ void Parser::checkInformation(const Eigen::Matrix<double, N, N>& info) const {
   const double smallest = eigenvalues.minCoeff();
   const double largest = eigenvalues.cwiseAbs().maxCoeff();
   if (smallest >= -kIndefiniteTolerance * largest) return;
-  in_.fail("information matrix is not positive semi-definite (eigenvalue " +
-               formatNumber(smallest) + ", largest magnitude " + formatNumber(largest) + ")",
+  in_.fail("information matrix is not positive semi-definite (eigenvalue " + exactText(smallest) +
+               ", largest magnitude " + exactText(largest) + ")",
            "information");
 }
 
@@ -397,7 +388,7 @@ Eigen::Isometry3d placeVertex(const G2oGraph& graph, const Adjacency& adjacency,
 // ---- writing --------------------------------------------------------------
 
 void writeNumbers(std::ostream& out, std::initializer_list<double> values) {
-  for (const double v : values) out << ' ' << formatNumber(v);
+  for (const double v : values) out << ' ' << exactText(v);
 }
 
 Eigen::Quaterniond quaternionOf(const Eigen::Isometry3d& T) {
@@ -423,7 +414,7 @@ void writeInformation(std::ostream& out, const core::Matrix6d& info,
   for (const auto& [r, c] : order) {
     const Index row = planar ? kPlanarAxes[static_cast<std::size_t>(r)] : r;
     const Index col = planar ? kPlanarAxes[static_cast<std::size_t>(c)] : c;
-    out << ' ' << formatNumber(info(row, col));
+    out << ' ' << exactText(info(row, col));
   }
 }
 

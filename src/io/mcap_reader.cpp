@@ -38,10 +38,6 @@ using detail::McapOp;
 constexpr std::uint64_t kMaxChunkBytes = std::uint64_t{1} << 30;
 constexpr std::uint64_t kMaxCompressionRatio = 1000;
 
-[[noreturn]] void failAt(const std::string& path, std::uint64_t byte, const std::string& what) {
-  throw FileError(FileLocation{path, std::nullopt, byte, std::nullopt}, what);
-}
-
 std::string printable(std::string_view text) {
   std::string out;
   for (const char c : text.substr(0, 64)) out += (c >= 0x20 && c < 0x7f) ? c : '?';
@@ -91,10 +87,10 @@ class Cursor {
   [[noreturn]] void fail(const std::string& what) const { failAt(position(), what); }
   [[noreturn]] void failAt(std::uint64_t position, const std::string& what) const {
     if (chunk_) {
-      io::failAt(path_, *chunk_,
-                 fmt::format("chunk: at byte {} of its content: {}", position, what));
+      io::failAtByte(path_, *chunk_,
+                     fmt::format("chunk: at byte {} of its content: {}", position, what));
     }
-    io::failAt(path_, position, what);
+    io::failAtByte(path_, position, what);
   }
 
  private:
@@ -293,7 +289,7 @@ struct McapReader::Impl {
 void McapReader::Impl::readAt(std::uint64_t byte, std::uint64_t n, std::vector<char>& out,
                               const char* what) {
   if (byte > file_size || n > file_size - byte) {
-    failAt(
+    failAtByte(
         path, byte,
         fmt::format("{} of {} bytes runs past the end of the file ({} bytes)", what, n, file_size));
   }
@@ -301,7 +297,7 @@ void McapReader::Impl::readAt(std::uint64_t byte, std::uint64_t n, std::vector<c
   file.clear();
   file.seekg(static_cast<std::streamoff>(byte));
   if (n > 0 && !file.read(out.data(), static_cast<std::streamsize>(n))) {
-    failAt(path, byte, fmt::format("cannot read {} bytes: {}", n, std::strerror(errno)));
+    failAtByte(path, byte, fmt::format("cannot read {} bytes: {}", n, std::strerror(errno)));
   }
 }
 
@@ -311,10 +307,11 @@ std::pair<McapOp, std::uint64_t> McapReader::Impl::prefixAt(std::uint64_t byte, 
   const auto op = static_cast<McapOp>(in.number<std::uint8_t>("record opcode"));
   const auto length = in.number<std::uint64_t>("record length");
   if (length > end - byte - kRecordPrefixBytes) {
-    failAt(path, byte,
-           fmt::format("record (opcode {:#04x}) of {} bytes runs past byte {}, where its section "
-                       "ends",
-                       static_cast<int>(op), length, end));
+    failAtByte(
+        path, byte,
+        fmt::format("record (opcode {:#04x}) of {} bytes runs past byte {}, where its section "
+                    "ends",
+                    static_cast<int>(op), length, end));
   }
   return {op, length};
 }
@@ -330,27 +327,27 @@ void McapReader::Impl::open() {
   const std::string_view start(bytes.data(), bytes.size());
   if (start != std::string_view(kMcapMagic.data(), kMcapMagic.size())) {
     if (start.starts_with("\x89MCAP") && start.size() > 5) {
-      failAt(path, 5,
-             fmt::format("MCAP major version '{}' is not read, only '0'",
-                         printable(start.substr(5, 1))));
+      failAtByte(path, 5,
+                 fmt::format("MCAP major version '{}' is not read, only '0'",
+                             printable(start.substr(5, 1))));
     }
-    failAt(path, 0, "not an MCAP file: it does not begin with MCAP's magic");
+    failAtByte(path, 0, "not an MCAP file: it does not begin with MCAP's magic");
   }
   if (file_size < kMcapMagic.size() + kRecordPrefixBytes + kMcapTailBytes) {
-    failAt(path, file_size,
-           "truncated: too short to hold a header, a footer and the closing magic");
+    failAtByte(path, file_size,
+               "truncated: too short to hold a header, a footer and the closing magic");
   }
   readAt(file_size - kMcapMagic.size(), kMcapMagic.size(), bytes, "closing magic");
   if (!std::equal(bytes.begin(), bytes.end(), kMcapMagic.begin())) {
-    failAt(path, file_size - kMcapMagic.size(),
-           "truncated or damaged: the file does not end with MCAP's magic (the recording may "
-           "have been interrupted; `mcap recover` rebuilds such a file)");
+    failAtByte(path, file_size - kMcapMagic.size(),
+               "truncated or damaged: the file does not end with MCAP's magic (the recording may "
+               "have been interrupted; `mcap recover` rebuilds such a file)");
   }
   readHeader();
   const std::uint64_t footer_at = file_size - kMcapTailBytes;
   const auto [op, length] = prefixAt(footer_at, file_size);
   if (op != McapOp::footer || length != detail::kFooterContentBytes) {
-    failAt(path, footer_at, "no footer record before the closing magic");
+    failAtByte(path, footer_at, "no footer record before the closing magic");
   }
   readAt(footer_at + kRecordPrefixBytes, length, bytes, "footer");
   Cursor footer(bytes, path, footer_at + kRecordPrefixBytes);
@@ -369,7 +366,7 @@ void McapReader::Impl::open() {
 void McapReader::Impl::readHeader() {
   const std::uint64_t at = kMcapMagic.size();
   const auto [op, length] = prefixAt(at, file_size - kMcapTailBytes);
-  if (op != McapOp::header) failAt(path, at, "the first record is not the header");
+  if (op != McapOp::header) failAtByte(path, at, "the first record is not the header");
   std::vector<char> content;
   readAt(at + kRecordPrefixBytes, length, content, "header");
   Cursor in(content, path, at + kRecordPrefixBytes);
@@ -433,14 +430,15 @@ bool McapReader::Impl::readSummary(std::uint64_t summary_start, std::uint64_t su
   const std::uint64_t footer_at = file_size - kMcapTailBytes;
   const std::uint64_t data_start = kMcapMagic.size();
   if (summary_start <= data_start || summary_start > footer_at) {
-    failAt(path, footer_at + kRecordPrefixBytes,
-           fmt::format("footer: summary start {} is outside the file's records", summary_start));
+    failAtByte(
+        path, footer_at + kRecordPrefixBytes,
+        fmt::format("footer: summary start {} is outside the file's records", summary_start));
   }
   if (summary_offset_start != 0 &&
       (summary_offset_start < summary_start || summary_offset_start > footer_at)) {
-    failAt(path, footer_at + kRecordPrefixBytes + 8,
-           fmt::format("footer: summary offset start {} is outside the summary",
-                       summary_offset_start));
+    failAtByte(path, footer_at + kRecordPrefixBytes + 8,
+               fmt::format("footer: summary offset start {} is outside the summary",
+                           summary_offset_start));
   }
   std::vector<char> summary;
   // The summary, then the footer up to its crc: what the crc covers.
@@ -449,9 +447,9 @@ bool McapReader::Impl::readSummary(std::uint64_t summary_start, std::uint64_t su
     detail::Crc32 crc;
     crc.add(summary);
     if (crc.value() != summary_crc) {
-      failAt(path, summary_start,
-             fmt::format("summary crc {:#010x}, the footer says {:#010x}: damaged", crc.value(),
-                         summary_crc));
+      failAtByte(path, summary_start,
+                 fmt::format("summary crc {:#010x}, the footer says {:#010x}: damaged", crc.value(),
+                             summary_crc));
     }
   }
   const std::uint64_t end = summary_offset_start != 0 ? summary_offset_start : footer_at;
@@ -543,9 +541,9 @@ void McapReader::Impl::scan() {
       Cursor in(content, path, at + kRecordPrefixBytes);
       const auto expected = in.number<std::uint32_t>("data section crc");
       if (expected != 0 && expected != crc.value()) {
-        failAt(path, at,
-               fmt::format("data section crc {:#010x}, its end says {:#010x}: damaged", crc.value(),
-                           expected));
+        failAtByte(path, at,
+                   fmt::format("data section crc {:#010x}, its end says {:#010x}: damaged",
+                               crc.value(), expected));
       }
       return;  // the summary follows, if any
     }
@@ -559,10 +557,10 @@ void McapReader::Impl::scanRecord(McapOp op, std::uint64_t at, std::span<const c
   const Cursor in(content, path, at + kRecordPrefixBytes);
   switch (op) {
     case McapOp::header:
-      if (at != kMcapMagic.size()) failAt(path, at, "a second header record");
+      if (at != kMcapMagic.size()) failAtByte(path, at, "a second header record");
       break;
     case McapOp::footer:
-      failAt(path, at, "a footer record inside the data section");
+      failAtByte(path, at, "a footer record inside the data section");
     case McapOp::schema:
       addSchema(parseSchema(in), in);
       break;
@@ -617,7 +615,7 @@ void McapReader::Impl::loadChunk(std::size_t index) {
   if (chunk.index) {  // the index said where it is: check a chunk is there
     const auto [op, length] = prefixAt(chunk.at, file_size - kMcapTailBytes);
     if (op != McapOp::chunk || length != chunk.length) {
-      failAt(path, chunk.at, "the chunk index points at no chunk of its length");
+      failAtByte(path, chunk.at, "the chunk index points at no chunk of its length");
     }
   }
   std::vector<char> record;
@@ -628,11 +626,11 @@ void McapReader::Impl::loadChunk(std::size_t index) {
   if (chunk.index && (chunk.index->compression != c.compression ||
                       chunk.index->compressed_size != c.records.size() ||
                       chunk.index->uncompressed_size != c.uncompressed_size)) {
-    failAt(path, chunk.at, "the chunk disagrees with its index on its compression or sizes");
+    failAtByte(path, chunk.at, "the chunk disagrees with its index on its compression or sizes");
   }
   const auto fail = [&](const std::string& what) {
-    failAt(path, chunk.at,
-           fmt::format("chunk ({}): {}", c.compression.empty() ? "none" : c.compression, what));
+    failAtByte(path, chunk.at,
+               fmt::format("chunk ({}): {}", c.compression.empty() ? "none" : c.compression, what));
   };
   if (c.compression.empty()) {
     chunk_bytes.assign(c.records.begin(), c.records.end());
@@ -702,13 +700,13 @@ McapMessage McapReader::read(const McapMessageRef& ref) {
   if (ref.chunk == McapMessageRef::kNoChunk) {
     const auto [op, length] = m.prefixAt(ref.offset, m.file_size - kMcapTailBytes);
     m.readAt(ref.offset, kRecordPrefixBytes + length, m.message_bytes, "message");
-    if (op != McapOp::message) failAt(m.path, ref.offset, "no message record here");
+    if (op != McapOp::message) failAtByte(m.path, ref.offset, "no message record here");
     in.emplace(m.message_bytes, m.path, ref.offset);
   } else {
     if (ref.chunk >= m.chunks.size()) throw core::Error("McapReader::read: no such chunk");
     m.loadChunk(ref.chunk);
     const std::span<const char> content(m.chunk_bytes);
-    if (ref.offset >= content.size()) failAt(m.path, m.chunks[ref.chunk].at, "no such message");
+    if (ref.offset >= content.size()) failAtByte(m.path, m.chunks[ref.chunk].at, "no such message");
     in.emplace(content.subspan(static_cast<std::size_t>(ref.offset)), m.path, ref.offset,
                m.chunks[ref.chunk].at);
   }

@@ -3,7 +3,6 @@
 #include <functional>
 #include <map>
 #include <optional>
-#include <regex>
 #include <string_view>
 #include <utility>
 #include <vector>
@@ -57,13 +56,10 @@ GraphFile readGraphFile(const std::string& path, const G2oReadOptions& options) 
   throw core::FileError({.path = at.file->path, .line = at.line, .field = std::move(field)}, what);
 }
 
-std::string keyName(const core::PoseKey& key) {
-  return core::robotName(key.robot) + std::to_string(key.keyframe.value());
-}
-
 /// A vertex id as a user reads it: "b12" for a symbol, the number otherwise.
 std::string vertexName(std::uint64_t id) {
-  return core::PoseKey::isSymbol(id) ? keyName(core::PoseKey::unpack(id)) : std::to_string(id);
+  return core::PoseKey::isSymbol(id) ? core::keyName(core::PoseKey::unpack(id))
+                                     : std::to_string(id);
 }
 
 std::string describe(const VertexSource& at) {
@@ -72,10 +68,12 @@ std::string describe(const VertexSource& at) {
 
 /// The number of a robot graph's file name "<number>.g2o"; none for other names.
 std::optional<std::uint64_t> robotNumber(const fs::path& path) {
-  static const std::regex pattern("[0-9]+\\.g2o");
   const std::string name = path.filename().string();
-  if (!std::regex_match(name, pattern)) return std::nullopt;
-  const auto number = parseNumber<std::uint64_t>(std::string_view(name).substr(0, name.size() - 4));
+  const std::string_view stem = std::string_view(name).substr(0, name.size() - 4);
+  if (name.size() < 5 || !name.ends_with(".g2o") ||
+      !std::all_of(stem.begin(), stem.end(), [](char c) { return c >= '0' && c <= '9'; }))
+    return std::nullopt;
+  const auto number = parseNumber<std::uint64_t>(stem);
   if (!number) throw core::FileError({.path = path.string()}, "robot number too large");
   return number;
 }

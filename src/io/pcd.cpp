@@ -48,11 +48,6 @@ struct HeaderEntry {
 };
 using HeaderEntries = std::map<std::string, HeaderEntry, std::less<>>;
 
-[[noreturn]] void failAt(const std::string& path, std::size_t line,
-                         std::optional<std::string> field, const std::string& what) {
-  throw core::FileError({path, line, std::nullopt, std::move(field)}, what);
-}
-
 bool isKnownKey(std::string_view key) {
   static constexpr std::array<std::string_view, 10> kKeys = {
       "VERSION", "FIELDS", "COLUMNS", "SIZE",      "TYPE",
@@ -64,13 +59,13 @@ bool isKnownKey(std::string_view key) {
 HeaderEntries readHeaderEntries(ByteReader& in, std::size_t& line) {
   HeaderEntries entries;
   while (true) {
-    if (in.atEnd()) failAt(in.path(), line, std::nullopt, "header ends before the DATA line");
+    if (in.atEnd()) failAtLine(in.path(), line, std::nullopt, "header ends before the DATA line");
     ++line;
     const auto tokens = splitWhitespace(in.readLine("header line"));
     if (tokens.empty() || tokens[0].front() == '#') continue;
     std::string key(tokens[0] == "COLUMNS" ? "FIELDS" : tokens[0]);
-    if (!isKnownKey(key)) failAt(in.path(), line, key, "unknown PCD header key");
-    if (entries.count(key)) failAt(in.path(), line, key, "header key repeated");
+    if (!isKnownKey(key)) failAtLine(in.path(), line, key, "unknown PCD header key");
+    if (entries.count(key)) failAtLine(in.path(), line, key, "header key repeated");
     HeaderEntry& entry = entries[key];
     entry.line = line;
     for (std::size_t i = 1; i < tokens.size(); ++i) entry.values.emplace_back(tokens[i]);
@@ -81,20 +76,21 @@ HeaderEntries readHeaderEntries(ByteReader& in, std::size_t& line) {
 const HeaderEntry& requireEntry(const HeaderEntries& entries, const std::string& key,
                                 const std::string& path, std::size_t line) {
   const auto it = entries.find(key);
-  if (it == entries.end()) failAt(path, line, key, "missing from the header");
+  if (it == entries.end()) failAtLine(path, line, key, "missing from the header");
   return it->second;
 }
 
 std::size_t parseCount(const HeaderEntry& entry, std::size_t i, const std::string& key,
                        const std::string& path) {
   const auto value = parseNumber<std::size_t>(entry.values[i]);
-  if (!value) failAt(path, entry.line, key, fmt::format("'{}' is not a count", entry.values[i]));
+  if (!value)
+    failAtLine(path, entry.line, key, fmt::format("'{}' is not a count", entry.values[i]));
   return *value;
 }
 
 std::size_t parseSingleCount(const HeaderEntry& entry, const std::string& key,
                              const std::string& path) {
-  if (entry.values.size() != 1) failAt(path, entry.line, key, "expected one value");
+  if (entry.values.size() != 1) failAtLine(path, entry.line, key, "expected one value");
   return parseCount(entry, 0, key, path);
 }
 
@@ -105,8 +101,8 @@ ScalarType parseType(const HeaderEntry& type_entry, std::size_t size, std::size_
   if (t == "I") type.kind = ScalarKind::kInt;
   if (t == "U") type.kind = ScalarKind::kUint;
   if ((t != "F" && t != "I" && t != "U") || !detail::isValid(type)) {
-    failAt(path, type_entry.line, "TYPE",
-           fmt::format("type '{}' of size {} is not supported", t, size));
+    failAtLine(path, type_entry.line, "TYPE",
+               fmt::format("type '{}' of size {} is not supported", t, size));
   }
   return type;
 }
@@ -119,11 +115,11 @@ std::vector<PcdField> parseFields(const HeaderEntries& entries, const std::strin
   const HeaderEntry& types = requireEntry(entries, "TYPE", path, data_line);
   const auto counts = entries.find("COUNT");
   const std::size_t n = names.values.size();
-  if (n == 0) failAt(path, names.line, "FIELDS", "no fields");
+  if (n == 0) failAtLine(path, names.line, "FIELDS", "no fields");
   for (const auto* e : {&sizes, &types, counts == entries.end() ? &names : &counts->second}) {
     if (e->values.size() != n) {
-      failAt(path, e->line, std::nullopt,
-             fmt::format("{} values for {} FIELDS", e->values.size(), n));
+      failAtLine(path, e->line, std::nullopt,
+                 fmt::format("{} values for {} FIELDS", e->values.size(), n));
     }
   }
   std::vector<PcdField> fields(n);
@@ -132,8 +128,8 @@ std::vector<PcdField> parseFields(const HeaderEntries& entries, const std::strin
     fields[i].type = parseType(types, parseCount(sizes, i, "SIZE", path), i, path);
     if (counts != entries.end()) fields[i].count = parseCount(counts->second, i, "COUNT", path);
     if (fields[i].count == 0 || fields[i].count > kMaxFieldCount) {
-      failAt(path, counts->second.line, "COUNT",
-             fmt::format("a COUNT of {} (expected 1 to {})", fields[i].count, kMaxFieldCount));
+      failAtLine(path, counts->second.line, "COUNT",
+                 fmt::format("a COUNT of {} (expected 1 to {})", fields[i].count, kMaxFieldCount));
     }
   }
   return fields;
@@ -145,7 +141,7 @@ DataKind parseDataKind(const HeaderEntry& entry, const std::string& path) {
     if (entry.values[0] == "binary") return DataKind::kBinary;
     if (entry.values[0] == "binary_compressed") return DataKind::kBinaryCompressed;
   }
-  failAt(path, entry.line, "DATA", "expected ascii, binary or binary_compressed");
+  failAtLine(path, entry.line, "DATA", "expected ascii, binary or binary_compressed");
 }
 
 /// POINTS (or WIDTH * HEIGHT when absent), checked against WIDTH * HEIGHT.
@@ -157,18 +153,18 @@ std::size_t parsePoints(const HeaderEntries& entries, const std::string& path,
   const std::size_t height =
       height_entry == entries.end() ? 1 : parseSingleCount(height_entry->second, "HEIGHT", path);
   const auto product = detail::checkedMul(width, height);
-  if (!product) failAt(path, width_entry.line, "WIDTH", "WIDTH * HEIGHT overflows");
+  if (!product) failAtLine(path, width_entry.line, "WIDTH", "WIDTH * HEIGHT overflows");
   const auto points_entry = entries.find("POINTS");
   if (points_entry == entries.end()) return *product;
   const std::size_t points = parseSingleCount(points_entry->second, "POINTS", path);
   if (points != *product) {
-    failAt(path, points_entry->second.line, "POINTS",
-           fmt::format("{} differs from WIDTH * HEIGHT = {}", points, *product));
+    failAtLine(path, points_entry->second.line, "POINTS",
+               fmt::format("{} differs from WIDTH * HEIGHT = {}", points, *product));
   }
   return points;
 }
 
-PcdHeader parseHeader(ByteReader& in, std::size_t& line) {
+PcdHeader parsePcdHeader(ByteReader& in, std::size_t& line) {
   const HeaderEntries entries = readHeaderEntries(in, line);
   PcdHeader header;
   header.fields = parseFields(entries, in.path(), line);
@@ -198,7 +194,7 @@ PointLayout makeLayout(const PcdHeader& header, const std::string& path, bool as
   for (const auto& f : header.fields) {
     const auto channel = detail::channelOf(f.name);
     if (channel && f.count != 1) {
-      failAt(path, header.fields_line, f.name, "COUNT must be 1 for a point channel");
+      failAtLine(path, header.fields_line, f.name, "COUNT must be 1 for a point channel");
     }
     if (channel) {
       const std::size_t at = ascii || n == 0 ? offset : offset * n;
@@ -206,7 +202,7 @@ PointLayout makeLayout(const PcdHeader& header, const std::string& path, bool as
     }
     offset += ascii ? f.count : fieldBytes(f);
   }
-  if (auto missing = layout.missingXyz()) failAt(path, header.fields_line, *missing, "missing");
+  if (auto missing = layout.missingXyz()) failAtLine(path, header.fields_line, *missing, "missing");
   return layout;
 }
 
@@ -357,7 +353,7 @@ core::PointCloud decodePcd(std::span<const char> bytes, const std::string& name,
   if (bytes.empty()) throw core::FileError({name, std::nullopt, 0}, "empty file");
   ByteReader in(bytes, name);
   std::size_t line = 0;
-  const PcdHeader header = parseHeader(in, line);
+  const PcdHeader header = parsePcdHeader(in, line);
   switch (header.data) {
     case DataKind::kAscii:
       return readAscii(in, header, line, options);

@@ -40,11 +40,6 @@ struct PlyHeader {
   std::vector<PlyElement> elements;
 };
 
-[[noreturn]] void failAt(const std::string& path, std::size_t line,
-                         std::optional<std::string> field, const std::string& what) {
-  throw core::FileError({path, line, std::nullopt, std::move(field)}, what);
-}
-
 std::optional<ScalarType> scalarTypeOf(std::string_view name) {
   static constexpr std::array<std::pair<std::string_view, ScalarType>, 16> kTypes = {{
       {"char", {ScalarKind::kInt, 1}},
@@ -73,7 +68,7 @@ std::optional<ScalarType> scalarTypeOf(std::string_view name) {
 ScalarType requireType(std::string_view token, const std::string& path, std::size_t line,
                        const std::string& property) {
   const auto type = scalarTypeOf(token);
-  if (!type) failAt(path, line, property, fmt::format("unknown property type '{}'", token));
+  if (!type) failAtLine(path, line, property, fmt::format("unknown property type '{}'", token));
   return *type;
 }
 
@@ -81,8 +76,8 @@ PlyProperty parseProperty(const std::vector<std::string_view>& tokens, const std
                           std::size_t line) {
   const bool list = tokens.size() > 1 && tokens[1] == "list";
   if (tokens.size() != (list ? 5u : 3u)) {
-    failAt(path, line, std::nullopt,
-           "expected 'property <type> <name>' or 'property list <count type> <type> <name>'");
+    failAtLine(path, line, std::nullopt,
+               "expected 'property <type> <name>' or 'property list <count type> <type> <name>'");
   }
   PlyProperty p;
   p.name = std::string(tokens.back());
@@ -90,7 +85,7 @@ PlyProperty parseProperty(const std::vector<std::string_view>& tokens, const std
   if (list) {
     p.list_count = requireType(tokens[2], path, line, p.name);
     if (p.list_count->kind == ScalarKind::kFloat) {
-      failAt(path, line, p.name, "a list count must be of an integer type");
+      failAtLine(path, line, p.name, "a list count must be of an integer type");
     }
   }
   return p;
@@ -98,10 +93,10 @@ PlyProperty parseProperty(const std::vector<std::string_view>& tokens, const std
 
 PlyElement parseElement(const std::vector<std::string_view>& tokens, const std::string& path,
                         std::size_t line) {
-  if (tokens.size() != 3) failAt(path, line, std::nullopt, "expected 'element <name> <count>'");
+  if (tokens.size() != 3) failAtLine(path, line, std::nullopt, "expected 'element <name> <count>'");
   const auto count = parseNumber<std::size_t>(tokens[2]);
   if (!count) {
-    failAt(path, line, std::string(tokens[1]), fmt::format("'{}' is not a count", tokens[2]));
+    failAtLine(path, line, std::string(tokens[1]), fmt::format("'{}' is not a count", tokens[2]));
   }
   return {std::string(tokens[1]), *count, line, {}};
 }
@@ -109,12 +104,12 @@ PlyElement parseElement(const std::vector<std::string_view>& tokens, const std::
 PlyFormat parseFormat(const std::vector<std::string_view>& tokens, const std::string& path,
                       std::size_t line) {
   if (tokens.size() != 3 || tokens[2] != "1.0") {
-    failAt(path, line, "format", "expected 'format <encoding> 1.0'");
+    failAtLine(path, line, "format", "expected 'format <encoding> 1.0'");
   }
   if (tokens[1] == "ascii") return PlyFormat::kAscii;
   if (tokens[1] == "binary_little_endian") return PlyFormat::kBinaryLittleEndian;
   if (tokens[1] == "binary_big_endian") return PlyFormat::kBinaryBigEndian;
-  failAt(path, line, "format", fmt::format("unknown encoding '{}'", tokens[1]));
+  failAtLine(path, line, "format", fmt::format("unknown encoding '{}'", tokens[1]));
 }
 
 /// Applies one header line; false at end_header.
@@ -129,27 +124,28 @@ bool applyHeaderLine(const std::vector<std::string_view>& tokens, PlyHeader& hea
   } else if (key == "element") {
     header.elements.push_back(parseElement(tokens, path, line));
   } else if (key == "property") {
-    if (header.elements.empty()) failAt(path, line, std::nullopt, "property before any element");
+    if (header.elements.empty())
+      failAtLine(path, line, std::nullopt, "property before any element");
     header.elements.back().properties.push_back(parseProperty(tokens, path, line));
   } else {
-    failAt(path, line, std::nullopt, fmt::format("unknown header keyword '{}'", key));
+    failAtLine(path, line, std::nullopt, fmt::format("unknown header keyword '{}'", key));
   }
   return true;
 }
 
-PlyHeader parseHeader(ByteReader& in, std::size_t& line) {
+PlyHeader parsePlyHeader(ByteReader& in, std::size_t& line) {
   line = 1;
-  if (in.readLine("magic") != "ply") failAt(in.path(), 1, std::nullopt, "not a PLY file");
+  if (in.readLine("magic") != "ply") failAtLine(in.path(), 1, std::nullopt, "not a PLY file");
   PlyHeader header;
   bool has_format = false;
   while (true) {
-    if (in.atEnd()) failAt(in.path(), line, std::nullopt, "header ends before end_header");
+    if (in.atEnd()) failAtLine(in.path(), line, std::nullopt, "header ends before end_header");
     ++line;
     const auto tokens = splitWhitespace(in.readLine("header line"));
     if (tokens.empty()) continue;
     if (!applyHeaderLine(tokens, header, has_format, in.path(), line)) break;
   }
-  if (!has_format) failAt(in.path(), line, "format", "missing from the header");
+  if (!has_format) failAtLine(in.path(), line, "format", "missing from the header");
   return header;
 }
 
@@ -157,7 +153,7 @@ const PlyElement& requireVertex(const PlyHeader& header, const std::string& path
                                 std::size_t line) {
   const auto it = std::find_if(header.elements.begin(), header.elements.end(),
                                [](const PlyElement& e) { return e.name == "vertex"; });
-  if (it == header.elements.end()) failAt(path, line, "vertex", "no vertex element");
+  if (it == header.elements.end()) failAtLine(path, line, "vertex", "no vertex element");
   return *it;
 }
 
@@ -180,13 +176,15 @@ PointLayout vertexLayout(const PlyElement& vertex, PlyFormat format, const std::
   const std::size_t record = recordBytes(vertex);
   std::size_t offset = 0;
   for (const auto& p : vertex.properties) {
-    if (p.list_count) failAt(path, vertex.line, p.name, "list properties of vertices unsupported");
+    if (p.list_count)
+      failAtLine(path, vertex.line, p.name, "list properties of vertices unsupported");
     if (const auto channel = detail::channelOf(channelName(p.name))) {
       layout.assign(*channel, {offset, record, p.type, p.name});
     }
     offset += ascii ? 1 : p.type.size;
   }
-  if (auto missing = layout.missingXyz()) failAt(path, vertex.line, *missing, "vertex lacks it");
+  if (auto missing = layout.missingXyz())
+    failAtLine(path, vertex.line, *missing, "vertex lacks it");
   return layout;
 }
 
@@ -244,27 +242,27 @@ void checkAsciiRecord(const std::vector<std::string_view>& tokens, const PlyElem
                       const std::string& path, std::size_t line) {
   std::size_t at = 0;
   for (const auto& p : e.properties) {
-    if (at >= tokens.size()) failAt(path, line, p.name, "missing value");
+    if (at >= tokens.size()) failAtLine(path, line, p.name, "missing value");
     if (!p.list_count) {
       ++at;
       continue;
     }
     const auto n = detail::parseTyped(tokens[at], *p.list_count);
     if (!n || *n < 0 || *n > static_cast<double>(tokens.size())) {
-      failAt(path, line, p.name, fmt::format("bad list length '{}'", tokens[at]));
+      failAtLine(path, line, p.name, fmt::format("bad list length '{}'", tokens[at]));
     }
     at += 1 + static_cast<std::size_t>(*n);
   }
   if (at != tokens.size()) {
-    failAt(path, line, e.name, fmt::format("expected {} values, found {}", at, tokens.size()));
+    failAtLine(path, line, e.name, fmt::format("expected {} values, found {}", at, tokens.size()));
   }
 }
 
 void skipAsciiElement(ByteReader& in, std::size_t& line, const PlyElement& e) {
   for (std::size_t i = 0; i < e.count;) {
     if (in.atEnd()) {
-      failAt(in.path(), line, e.name,
-             fmt::format("truncated data: expected {} records, found {}", e.count, i));
+      failAtLine(in.path(), line, e.name,
+                 fmt::format("truncated data: expected {} records, found {}", e.count, i));
     }
     ++line;
     const auto tokens = splitWhitespace(in.readLine("element line"));
@@ -360,7 +358,7 @@ core::PointCloud decodePly(std::span<const char> bytes, const std::string& name,
   if (bytes.empty()) throw core::FileError({name, std::nullopt, 0}, "empty file");
   ByteReader in(bytes, name);
   std::size_t line = 0;
-  const PlyHeader header = parseHeader(in, line);
+  const PlyHeader header = parsePlyHeader(in, line);
   return readBody(in, line, header, options);
 }
 

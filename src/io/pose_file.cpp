@@ -18,17 +18,8 @@ using Tokens = std::vector<std::string_view>;
 
 /// How far (Frobenius norm of R^T R - I) a printed rotation may be from SO(3).
 constexpr double kRotationTolerance = 1e-2;
-/// How far from 1 a printed quaternion's norm may be.
-constexpr double kQuaternionTolerance = 1e-2;
 constexpr std::size_t kKittiFields = 12;
 constexpr std::array<const char*, 8> kTumFields = {"t", "x", "y", "z", "qx", "qy", "qz", "qw"};
-
-/// The shortest decimal text that reads back to exactly `value`.
-std::string formatNumber(double value) {
-  std::array<char, 32> buffer{};
-  const auto result = std::to_chars(buffer.data(), buffer.data() + buffer.size(), value);
-  return {buffer.data(), result.ptr};
-}
 
 /// "r11".."r33" for the rotation entries, "tx", "ty", "tz" for the translation.
 std::string kittiFieldName(std::size_t k) {
@@ -66,7 +57,7 @@ void requireCount(const LineReader& in, std::size_t found, std::size_t expected,
 std::optional<std::string> rotationProblem(const Eigen::Matrix3d& R) {
   const double error = (R.transpose() * R - Eigen::Matrix3d::Identity()).norm();
   if (!(error <= kRotationTolerance)) {  // NaN too: entries near 1e200 overflow R^T R
-    return "rotation block is not orthonormal (|R^T R - I| = " + formatNumber(error) + ")";
+    return "rotation block is not orthonormal (|R^T R - I| = " + exactText(error) + ")";
   }
   if (R.determinant() < 0.0) return "rotation block is a reflection (determinant < 0)";
   return std::nullopt;
@@ -123,7 +114,7 @@ Eigen::Quaterniond parseQuaternion(const LineReader& in, const Tokens& tokens) {
   q.w() = finiteNumber(in, tokens[7], "qw");
   const double norm = q.norm();
   if (std::abs(norm - 1.0) > kQuaternionTolerance) {
-    in.fail("quaternion norm " + formatNumber(norm) + " is not 1 (corrupt line?)");
+    in.fail("quaternion norm " + exactText(norm) + " is not 1 (corrupt line?)");
   }
   return q;
 }
@@ -140,7 +131,7 @@ void parseTumLine(const LineReader& in, core::Trajectory& out) {
 void writeKittiLine(std::ostream& out, const Eigen::Isometry3d& T) {
   for (std::size_t k = 0; k < kKittiFields; ++k) {
     if (k > 0) out << ' ';
-    out << formatNumber(
+    out << exactText(
         T.matrix()(static_cast<Eigen::Index>(k / 4), static_cast<Eigen::Index>(k % 4)));
   }
   out << '\n';
@@ -150,16 +141,16 @@ void writeTumLine(std::ostream& out, double stamp, const Eigen::Isometry3d& T) {
   Eigen::Quaterniond q(T.linear());
   if (q.w() < 0.0) q.coeffs() = -q.coeffs();
   const Eigen::Vector3d& p = T.translation();
-  out << formatNumber(stamp);
+  out << exactText(stamp);
   for (const double v : {p.x(), p.y(), p.z(), q.x(), q.y(), q.z(), q.w()}) {
-    out << ' ' << formatNumber(v);
+    out << ' ' << exactText(v);
   }
   out << '\n';
 }
 
 void writeStamps(const std::string& path, const std::vector<double>& stamps) {
   writeFileAtomic(path, [&](std::ostream& out) {
-    for (const double t : stamps) out << formatNumber(t) << '\n';
+    for (const double t : stamps) out << exactText(t) << '\n';
   });
 }
 
@@ -211,7 +202,7 @@ std::vector<double> readKittiTimes(const std::string& path) {
     const double t = finiteNumber(in, tokens.front(), "t");
     if (!stamps.empty() && !(t > stamps.back())) {
       in.fail(std::string(t == stamps.back() ? "repeats" : "goes back before") + " the stamp " +
-                  formatNumber(stamps.back()) + " of line " + std::to_string(previous_line) +
+                  exactText(stamps.back()) + " of line " + std::to_string(previous_line) +
                   " (stamps must increase)",
               "t");
     }

@@ -10,10 +10,6 @@ using backend::Factor;
 using backend::FactorKind;
 using backend::PoseGraph;
 
-std::string keyName(const core::PoseKey& key) {
-  return core::robotName(key.robot) + std::to_string(key.keyframe.value());
-}
-
 FactorKind kindOf(const core::PoseKey& from, const core::PoseKey& to) {
   if (from.robot != to.robot) return FactorKind::inter_loop;
   const auto a = from.keyframe.value();
@@ -35,7 +31,7 @@ bool singleRobotZero(const PoseGraph& graph) {
 std::uint64_t vertexId(const core::PoseKey& key, VertexIds ids) {
   if (ids == VertexIds::symbols) return key.pack();
   if (key.robot != core::RobotId(0)) {
-    throw core::Error("pose graph: node " + keyName(key) +
+    throw core::Error("pose graph: node " + core::keyName(key) +
                       " is not robot 0's; write it with symbol vertex ids");
   }
   return key.keyframe.value();

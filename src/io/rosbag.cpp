@@ -26,8 +26,8 @@ struct KnownType {
   std::string_view name;
   std::string_view md5;
 };
-constexpr KnownType kCloudType = {"sensor_msgs/PointCloud2", "1158d486dd51d683ce2f1be655c3c181"};
-constexpr KnownType kOdometryType = {"nav_msgs/Odometry", "cd5e73d190d741a2f92e81eda573aca7"};
+constexpr KnownType kCloudMessage = {"sensor_msgs/PointCloud2", "1158d486dd51d683ce2f1be655c3c181"};
+constexpr KnownType kOdometryMessage = {"nav_msgs/Odometry", "cd5e73d190d741a2f92e81eda573aca7"};
 constexpr KnownType kPoseStampedType = {"geometry_msgs/PoseStamped",
                                         "d3812c3cbc69362b77dc0b19b345f8f5"};
 constexpr KnownType kPoseCovarianceType = {"geometry_msgs/PoseWithCovarianceStamped",
@@ -167,7 +167,7 @@ Eigen::Isometry3d readPose(ByteReader& in) {
 
 std::pair<double, Eigen::Isometry3d> readStampedPose(ByteReader& in, std::string_view type) {
   const double stamp = readHeaderStamp(in);
-  if (type == kOdometryType.name) readString(in, "child_frame_id");
+  if (type == kOdometryMessage.name) readString(in, "child_frame_id");
   return {stamp, readPose(in)};
 }
 
@@ -207,7 +207,7 @@ struct BagCloudReader::Impl {
 BagCloudReader::BagCloudReader(const std::string& path, const std::string& topic,
                                const BagCloudOptions& options)
     : impl_(std::make_unique<Impl>(path, topic, options)) {
-  impl_->messages = topicMessages(impl_->bag, topic, {kCloudType});
+  impl_->messages = topicMessages(impl_->bag, topic, {kCloudMessage});
 }
 
 BagCloudReader::~BagCloudReader() = default;
@@ -246,7 +246,7 @@ std::vector<StampedCloud> readBagClouds(const std::string& path, const std::stri
 core::Trajectory readBagTrajectory(const std::string& path, const std::string& topic) {
   detail::BagFile bag(path);
   const auto messages =
-      topicMessages(bag, topic, {kOdometryType, kPoseStampedType, kPoseCovarianceType});
+      topicMessages(bag, topic, {kOdometryMessage, kPoseStampedType, kPoseCovarianceType});
   core::Trajectory trajectory;
   trajectory.reserve(messages.size());
   for (std::size_t i = 0; i < messages.size(); ++i) {

@@ -12,12 +12,12 @@ namespace dcl::place {
 
 namespace {
 
-void check(bool ok, const std::string& what) {
+void checkLogGabor(bool ok, const std::string& what) {
   if (!ok) throw core::Error("LoG-Gabor: " + what);
 }
 
 void validate(int columns, const LogGaborConfig& config) {
-  check(columns >= 4 && columns % 2 == 0, "row length must be even and at least 4");
+  checkLogGabor(columns >= 4 && columns % 2 == 0, "row length must be even and at least 4");
   core::checkConfig(config, "LoG-Gabor config");
 }
 
@@ -66,7 +66,8 @@ LogGaborBank::LogGaborBank(int columns, const LogGaborConfig& config)
     impl_->transfers.push_back(logGaborTransfer(columns, wavelength, config.sigma_on_f));
   impl_->forward = kiss_fftr_alloc(columns, 0, nullptr, nullptr);
   impl_->inverse = kiss_fft_alloc(columns, 1, nullptr, nullptr);
-  check(impl_->forward != nullptr && impl_->inverse != nullptr, "FFT plan allocation failed");
+  checkLogGabor(impl_->forward != nullptr && impl_->inverse != nullptr,
+                "FFT plan allocation failed");
   impl_->full.assign(static_cast<std::size_t>(columns), {0.0F, 0.0F});
 }
 
@@ -85,18 +86,18 @@ const LogGaborConfig& LogGaborBank::config() const {
 }
 
 void LogGaborBank::spectrum(std::span<const float> row, std::span<std::complex<float>> out) {
-  check(row.size() == static_cast<std::size_t>(impl_->columns) &&
-            out.size() == static_cast<std::size_t>(impl_->columns / 2 + 1),
-        "spectrum: wrong buffer sizes");
+  checkLogGabor(row.size() == static_cast<std::size_t>(impl_->columns) &&
+                    out.size() == static_cast<std::size_t>(impl_->columns / 2 + 1),
+                "spectrum: wrong buffer sizes");
   kiss_fftr(impl_->forward, row.data(), asKiss(out.data()));
 }
 
 void LogGaborBank::response(std::span<const std::complex<float>> spectrum, int scale,
                             std::span<std::complex<float>> out) {
   const auto bins = static_cast<std::size_t>(impl_->columns / 2 + 1);
-  check(spectrum.size() == bins && out.size() == static_cast<std::size_t>(impl_->columns) &&
-            scale >= 0 && scale < scales(),
-        "response: wrong buffer sizes or scale");
+  checkLogGabor(spectrum.size() == bins && out.size() == static_cast<std::size_t>(impl_->columns) &&
+                    scale >= 0 && scale < scales(),
+                "response: wrong buffer sizes or scale");
   // Only the positive frequencies pass (the rest of `full` stays zero), so the
   // response is an analytic signal: its real and imaginary parts are the even
   // and odd filter outputs whose signs make the feature bits.

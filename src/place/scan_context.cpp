@@ -12,11 +12,11 @@ namespace {
 
 constexpr double kPi = 3.14159265358979323846;
 
-void check(bool ok, const std::string& what) {
+void checkScanContext(bool ok, const std::string& what) {
   if (!ok) throw core::Error("Scan Context: " + what);
 }
 
-std::size_t idx(int i) {
+std::size_t toSize(int i) {
   return static_cast<std::size_t>(i);
 }
 
@@ -38,17 +38,17 @@ int binOf(const ScanContextConfig& c, const Eigen::Vector3f& p) {
 
 /// The Euclidean norm of every sector (column).
 std::vector<double> columnNorms(const ScanContextDescriptor& d) {
-  std::vector<double> norms(idx(d.sectors), 0.0);
+  std::vector<double> norms(toSize(d.sectors), 0.0);
   for (int r = 0; r < d.rings; ++r)
     for (int s = 0; s < d.sectors; ++s)
-      norms[idx(s)] += static_cast<double>(d.at(r, s)) * d.at(r, s);
+      norms[toSize(s)] += static_cast<double>(d.at(r, s)) * d.at(r, s);
   for (double& n : norms) n = std::sqrt(n);
   return norms;
 }
 
 void checkComparable(const ScanContextDescriptor& a, const ScanContextDescriptor& b) {
-  check(a.rings == b.rings && a.sectors == b.sectors && a.sectors > 0,
-        "cannot compare descriptors of different dimensions");
+  checkScanContext(a.rings == b.rings && a.sectors == b.sectors && a.sectors > 0,
+                   "cannot compare descriptors of different dimensions");
 }
 
 double distanceWithNorms(const ScanContextDescriptor& q, const ScanContextDescriptor& c,
@@ -57,10 +57,10 @@ double distanceWithNorms(const ScanContextDescriptor& q, const ScanContextDescri
   int columns = 0;
   for (int j = 0; j < q.sectors; ++j) {
     const int k = (j + shift) % q.sectors;
-    if (qn[idx(j)] <= 0.0 || cn[idx(k)] <= 0.0) continue;
+    if (qn[toSize(j)] <= 0.0 || cn[toSize(k)] <= 0.0) continue;
     double dot = 0.0;
     for (int r = 0; r < q.rings; ++r) dot += static_cast<double>(q.at(r, j)) * c.at(r, k);
-    similarity += dot / (qn[idx(j)] * cn[idx(k)]);
+    similarity += dot / (qn[toSize(j)] * cn[toSize(k)]);
     ++columns;
   }
   return columns == 0 ? 1.0 : 1.0 - similarity / columns;
@@ -74,19 +74,19 @@ ScanContextDescriptor describeScanContext(const core::PointCloud& scan,
   ScanContextDescriptor d;
   d.rings = config.rings;
   d.sectors = config.sectors;
-  d.cells.assign(idx(config.rings * config.sectors), 0.0F);
+  d.cells.assign(toSize(config.rings * config.sectors), 0.0F);
   for (const Eigen::Vector3f& p : scan.points) {
     const int bin = binOf(config, p);
     if (bin < 0) continue;
     // Heights lifted by the mount height so that 0 can mean "empty" (Kim & Kim).
     const auto h = static_cast<float>(p.z() + config.sensor_height);
-    d.cells[idx(bin)] = std::max(d.cells[idx(bin)], h);
+    d.cells[toSize(bin)] = std::max(d.cells[toSize(bin)], h);
   }
-  d.ring_key.assign(idx(config.rings), 0.0F);
+  d.ring_key.assign(toSize(config.rings), 0.0F);
   for (int r = 0; r < d.rings; ++r) {
     double sum = 0.0;
     for (int s = 0; s < d.sectors; ++s) sum += d.at(r, s);
-    d.ring_key[idx(r)] = static_cast<float>(sum / d.sectors);
+    d.ring_key[toSize(r)] = static_cast<float>(sum / d.sectors);
   }
   return d;
 }
@@ -125,7 +125,7 @@ ScanContext::ScanContext(const ScanContextConfig& config) : config_(config) {
 }
 
 std::size_t ScanContext::keySize() const {
-  return idx(config_.rings);
+  return toSize(config_.rings);
 }
 
 std::shared_ptr<const PlaceDescriptor> ScanContext::describe(const core::PointCloud& scan) const {
@@ -135,7 +135,8 @@ std::shared_ptr<const PlaceDescriptor> ScanContext::describe(const core::PointCl
 Match ScanContext::match(const PlaceDescriptor& query, const PlaceDescriptor& candidate) const {
   const auto* q = dynamic_cast<const ScanContextDescriptor*>(&query);
   const auto* c = dynamic_cast<const ScanContextDescriptor*>(&candidate);
-  check(q != nullptr && c != nullptr, "match: both descriptors must be Scan Context descriptors");
+  checkScanContext(q != nullptr && c != nullptr,
+                   "match: both descriptors must be Scan Context descriptors");
   return matchScanContext(*q, *c);
 }
 

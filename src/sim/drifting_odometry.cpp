@@ -5,21 +5,16 @@
 #include <dcl/core/error.hpp>
 #include <dcl/sim/drifting_odometry.hpp>
 
+#include "world_detail.hpp"
+
 namespace dcl::sim {
 
 namespace {
 
-/// splitmix64's output function: counter-based numbers, the same everywhere.
-std::uint64_t mix(std::uint64_t z) {
-  z += 0x9E3779B97F4A7C15ull;
-  z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-  z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-  return z ^ (z >> 31);
-}
-
 /// Uniform in [-1, 1) from draw `k` of `seed`.
 double symmetric(std::uint64_t seed, std::uint64_t k) {
-  return -1.0 + 2.0 * static_cast<double>(mix(mix(seed) + k) >> 11) * 0x1.0p-53;
+  return -1.0 +
+         2.0 * static_cast<double>(detail::splitmix(detail::splitmix(seed) + k) >> 11) * 0x1.0p-53;
 }
 
 /// Zero-mean, unit-variance (the sum of three uniforms, scaled): no
@@ -51,7 +46,7 @@ core::Trajectory driftingOdometry(const core::Trajectory& truth, const OdometryD
   const double azimuth = M_PI * symmetric(drift.seed, 2);
   const Eigen::Vector3d axis =
       Eigen::Vector3d(0.1 * std::cos(azimuth), 0.1 * std::sin(azimuth), 1.0).normalized();
-  const std::uint64_t noise_seed = mix(drift.seed ^ 0x5DEECE66Dull);
+  const std::uint64_t noise_seed = detail::splitmix(drift.seed ^ 0x5DEECE66Dull);
 
   // Rotations as written to a few digits (a KITTI file's) are first made rotations.
   const auto pose = [&](std::size_t i) {

@@ -14,29 +14,14 @@
 #include <dcl/core/se3.hpp>
 #include <dcl/sim/routes.hpp>
 
+#include "world_detail.hpp"
+
 namespace dcl::sim {
 namespace {
 
 // ---------------------------------------------------------------- randomness
 
-/// splitmix64: the same numbers on every platform and standard library.
-class Rng {
- public:
-  explicit Rng(std::uint64_t seed) : state_(seed) {}
-
-  std::uint64_t next() {
-    std::uint64_t z = (state_ += 0x9E3779B97F4A7C15ull);
-    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
-    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
-    return z ^ (z >> 31);
-  }
-
-  /// Uniform in [lo, hi).
-  double uniform(double lo, double hi) { return lo + (hi - lo) * double(next() >> 11) * 0x1.0p-53; }
-
- private:
-  std::uint64_t state_;
-};
+using detail::Rng;
 
 /// An independent stream for `stream` (a robot, the terrain) under `seed`.
 Rng streamRng(std::uint64_t seed, std::uint64_t stream) {

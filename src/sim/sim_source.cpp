@@ -9,19 +9,13 @@
 #include <dcl/sim/lidar_model.hpp>
 #include <dcl/sim/sim_source.hpp>
 
+#include "world_detail.hpp"
+
 namespace dcl::sim {
 
 namespace {
 
 namespace fs = std::filesystem;
-
-/// splitmix64's finaliser: a bijective mix of all 64 bits.
-std::uint64_t mix(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ull;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ull;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebull;
-  return x ^ (x >> 31);
-}
 
 const io::SimSpec& requireSim(const io::DatasetSpec& spec) {
   if (!spec.sim) {
@@ -103,11 +97,12 @@ Traffic generateTrafficOfKind(io::WorldKind kind, const WorldRequest& request, d
 }
 
 std::uint64_t scanSeed(std::uint64_t dataset_seed, std::size_t robot, std::size_t index) {
-  return mix(mix(mix(dataset_seed) ^ robot) ^ index);
+  return detail::splitmix(detail::splitmix(detail::splitmix(dataset_seed) ^ robot) ^ index);
 }
 
 std::uint64_t unitSeed(std::uint64_t dataset_seed, std::size_t robot) {
-  return mix(mix(mix(dataset_seed) ^ robot) ^ ~std::uint64_t{0});  // no scan has index ~0
+  return detail::splitmix(detail::splitmix(detail::splitmix(dataset_seed) ^ robot) ^
+                          ~std::uint64_t{0});  // no scan has index ~0
 }
 
 // ---- SimWorld ----

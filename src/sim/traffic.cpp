@@ -22,7 +22,7 @@ constexpr double kAccelerate = 1.5;      // m/s^2
 constexpr double kRobotLookahead = 2.0;  // s, robots this far ahead in time are waited for
 
 /// A polyline on the ground with its arc length.
-class Path {
+class ActorPath {
  public:
   void add(const Eigen::Vector3d& p) {
     if (!points_.empty()) {
@@ -51,19 +51,19 @@ class Path {
     const Eigen::Vector3d d = at(s + 1.0) - at(s - 1.0);
     return std::atan2(d.y(), d.x());
   }
-  [[nodiscard]] Path reversed() const {
-    Path out;
+  [[nodiscard]] ActorPath reversed() const {
+    ActorPath out;
     for (auto it = points_.rbegin(); it != points_.rend(); ++it) out.add(*it);
     return out;
   }
   /// The stretch [s0, s1] (s1 < s0 runs backwards) resampled every kPathStep.
-  [[nodiscard]] Path between(double s0, double s1) const {
-    Path out;
+  [[nodiscard]] ActorPath between(double s0, double s1) const {
+    ActorPath out;
     const int n = std::max(1, static_cast<int>(std::abs(s1 - s0) / kPathStep));
     for (int i = 0; i <= n; ++i) out.add(at(s0 + (s1 - s0) * i / n));
     return out;
   }
-  void append(const Path& other) {
+  void append(const ActorPath& other) {
     for (const auto& p : other.points_) add(p);
   }
 
@@ -81,8 +81,9 @@ struct Street {
 /// The street's line at `offset` m to the left of its centreline (negative:
 /// right), `rise` m above the road, in the route's direction. Vertices where a
 /// tight bend would fold the offset line back are left out.
-Path offsetLine(const detail::RouteIndex& index, const Street& street, double offset, double rise) {
-  Path path;
+ActorPath offsetLine(const detail::RouteIndex& index, const Street& street, double offset,
+                     double rise) {
+  ActorPath path;
   Eigen::Vector2d last = Eigen::Vector2d::Constant(std::numeric_limits<double>::quiet_NaN());
   for (double s = street.s0; s <= street.s1 + 1e-9; s += kPathStep) {
     const auto f = index.frameAt(street.route, s);
@@ -218,7 +219,7 @@ struct Mover {
 /// step: cruising, following, stopping now and then, waiting for robots.
 class Lane {
  public:
-  Lane(Path path, ActorKind kind, Behaviour behaviour, const RobotClock& robots)
+  Lane(ActorPath path, ActorKind kind, Behaviour behaviour, const RobotClock& robots)
       : path_(std::move(path)), kind_(kind), behaviour_(behaviour), robots_(robots) {}
 
   /// `present` actors spread over the path at `t0`, and arrivals at a mean
@@ -352,7 +353,7 @@ class Lane {
     m.actor.absent.push_back(absent ? 1 : 0);
   }
 
-  Path path_;
+  ActorPath path_;
   ActorKind kind_;
   Behaviour behaviour_;
   const RobotClock& robots_;
@@ -363,12 +364,12 @@ class Lane {
 
 /// A path that walks `a` m along one pavement, crosses the street at the
 /// end, and walks on along the other pavement for `b` m.
-Path crossingPath(const detail::RouteIndex& index, const Street& street, double s_cross,
-                  double side, double a, double b, double pavement, double rise) {
-  const Path from = offsetLine(index, street, side * pavement, rise);
-  const Path to = offsetLine(index, street, -side * pavement, rise);
+ActorPath crossingPath(const detail::RouteIndex& index, const Street& street, double s_cross,
+                       double side, double a, double b, double pavement, double rise) {
+  const ActorPath from = offsetLine(index, street, side * pavement, rise);
+  const ActorPath to = offsetLine(index, street, -side * pavement, rise);
   const double s = s_cross - street.s0;
-  Path path = from.between(std::max(0.0, s - a), s);
+  ActorPath path = from.between(std::max(0.0, s - a), s);
   path.append(to.between(s, std::min(to.length(), s + b)));
   return path;
 }
@@ -471,7 +472,7 @@ Traffic generateTraffic(const WorldRequest& request, const WorldStyle& style,
   const auto perPath = [&](double per_km, int paths) { return density * per_km / 1000.0 / paths; };
   /// A path of `kind` carrying `per_m` actors a metre, arriving at its start
   /// as they leave at `speed`.
-  const auto addPath = [&](const Path& path, ActorKind kind, const Behaviour& b, double per_m,
+  const auto addPath = [&](const ActorPath& path, ActorKind kind, const Behaviour& b, double per_m,
                            double speed) {
     if (!path.valid()) return;
     lanes.emplace_back(path, kind, b, robots);
@@ -484,13 +485,13 @@ Traffic generateTraffic(const WorldRequest& request, const WorldStyle& style,
       return offsetLine(index, street, offset, rise);
     };
     for (double side : {-1.0, 1.0}) {
-      const auto way = [side](const Path& path) { return side < 0 ? path : path.reversed(); };
+      const auto way = [side](const ActorPath& path) { return side < 0 ? path : path.reversed(); };
       addPath(way(line(side * traffic.lane_offset)), ActorKind::car, car,
               perPath(traffic.cars_per_km, 2), car_speed);
       addPath(way(line(side * cycle_offset)), ActorKind::cyclist, cyclist,
               perPath(traffic.cyclists_per_km, 2), 4.75);
       // Pedestrians walk both ways on both pavements.
-      const Path pavement_line = line(side * pavement, style.kerb_height);
+      const ActorPath pavement_line = line(side * pavement, style.kerb_height);
       const double walking =
           perPath(traffic.pedestrians_per_km * (1.0 - traffic.crossing_share), 4);
       addPath(pavement_line, ActorKind::pedestrian, walker, walking, 1.3);
@@ -505,8 +506,8 @@ Traffic generateTraffic(const WorldRequest& request, const WorldStyle& style,
     for (int i = 0; i < n_cross; ++i) {
       const double s = rng.uniform(street.s0 + 10.0, street.s1 - 10.0);
       const double side = rng.chance(0.5) ? 1.0 : -1.0;
-      Path path = crossingPath(index, street, s, side, rng.uniform(5.0, 40.0),
-                               rng.uniform(5.0, 40.0), pavement, style.kerb_height);
+      ActorPath path = crossingPath(index, street, s, side, rng.uniform(5.0, 40.0),
+                                    rng.uniform(5.0, 40.0), pavement, style.kerb_height);
       if (!path.valid()) continue;
       lanes.emplace_back(std::move(path), ActorKind::pedestrian, walker, robots);
       // One walker, setting off at a random moment (at once when that is before t0).

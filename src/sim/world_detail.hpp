@@ -18,6 +18,15 @@
 
 namespace dcl::sim::detail {
 
+/// SplitMix64's output for counter `z`: z plus the golden gamma, finalised.
+/// Counter-based numbers, the same on every platform.
+inline std::uint64_t splitmix(std::uint64_t z) {
+  z += 0x9e3779b97f4a7c15ULL;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
 /// Mixes `value` into the hash `h` (SplitMix64 finaliser): seeds for every lot and vertex.
 std::uint64_t mix(std::uint64_t h, std::uint64_t value);
 

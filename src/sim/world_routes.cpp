@@ -10,15 +10,15 @@ namespace dcl::sim::detail {
 
 namespace {
 
-constexpr double kCell = 8.0;            // m, segment grid cell
-constexpr double kCoarseCell = 20.0;     // m, coarse sample grid cell
-constexpr double kCoarseSpacing = 10.0;  // m between coarse samples
-constexpr double kMinStep = 0.5;         // m, closer poses are merged
-constexpr double kMaxStep = 2.0;         // m, longer gaps are subdivided
-constexpr double kFreshRadius = 8.0;     // m, an earlier pass this close owns the street
-constexpr double kPaveRadius = 4.0;      // m, an earlier pass this close carries the road
-constexpr double kRecentArc = 40.0;      // m, the route's own recent samples do not count
-constexpr double kLaneSpan = 4.5;        // m, parallel lanes this near share one street
+constexpr double kCell = 8.0;               // m, segment grid cell
+constexpr double kCoarseSampleCell = 20.0;  // m, coarse sample grid cell
+constexpr double kCoarseSpacing = 10.0;     // m between coarse samples
+constexpr double kMinStep = 0.5;            // m, closer poses are merged
+constexpr double kMaxStep = 2.0;            // m, longer gaps are subdivided
+constexpr double kFreshRadius = 8.0;        // m, an earlier pass this close owns the street
+constexpr double kPaveRadius = 4.0;         // m, an earlier pass this close carries the road
+constexpr double kRecentArc = 40.0;         // m, the route's own recent samples do not count
+constexpr double kLaneSpan = 4.5;           // m, parallel lanes this near share one street
 
 struct SegmentPoint {
   double distance;
@@ -210,7 +210,7 @@ void RouteIndex::buildGrids() {
       for (int x = lo.x(); x <= hi.x(); ++x)
         for (int y = lo.y(); y <= hi.y(); ++y) grid_[key(x, y)].push_back({r, i});
       if (samples[i].s >= next_coarse) {
-        const Eigen::Vector2i c = cellOf(samples[i].xy, kCoarseCell);
+        const Eigen::Vector2i c = cellOf(samples[i].xy, kCoarseSampleCell);
         coarse_[key(c.x(), c.y())].push_back(static_cast<std::uint32_t>(coarse_samples_.size()));
         coarse_samples_.emplace_back(samples[i].xy.x(), samples[i].xy.y(), samples[i].z_road);
         next_coarse = samples[i].s + kCoarseSpacing;
@@ -304,8 +304,8 @@ RouteFrame RouteIndex::frameAt(std::size_t route, double s) const {
 }
 
 double RouteIndex::smoothRoadHeight(const Eigen::Vector2d& p, double radius) const {
-  const Eigen::Vector2i lo = cellOf(p.array() - radius, kCoarseCell);
-  const Eigen::Vector2i hi = cellOf(p.array() + radius, kCoarseCell);
+  const Eigen::Vector2i lo = cellOf(p.array() - radius, kCoarseSampleCell);
+  const Eigen::Vector2i hi = cellOf(p.array() + radius, kCoarseSampleCell);
   double sum = 0.0, weights = 0.0;
   for (int x = lo.x(); x <= hi.x(); ++x) {
     for (int y = lo.y(); y <= hi.y(); ++y) {

@@ -9,12 +9,12 @@ namespace dcl::sim::detail {
 
 namespace {
 
-constexpr double kTile = 16.0;          // m, ground tile
-constexpr double kFineRadius = 50.0;    // m, tiles nearer a route get fine cells
-constexpr double kCoarseCell = 8.0;     // m, ground cell far from routes
-constexpr double kUnderRoad = 0.05;     // m, ground sunk under roads and pavements
-constexpr double kRoadOverhang = 3.0;   // m, road strip beyond the first and last sample
-constexpr double kPavementPiece = 4.0;  // m, pavement box length along the road
+constexpr double kTile = 16.0;             // m, ground tile
+constexpr double kFineRadius = 50.0;       // m, tiles nearer a route get fine cells
+constexpr double kCoarseGroundCell = 8.0;  // m, ground cell far from routes
+constexpr double kUnderRoad = 0.05;        // m, ground sunk under roads and pavements
+constexpr double kRoadOverhang = 3.0;      // m, road strip beyond the first and last sample
+constexpr double kPavementPiece = 4.0;     // m, pavement box length along the road
 
 double smoothstep(double x) {
   x = std::clamp(x, 0.0, 1.0);
@@ -123,7 +123,8 @@ void addGround(World& world, const Terrain& terrain, const RouteIndex& index,
     const Eigen::Vector2d centre = corner + Eigen::Vector2d::Constant(kTile / 2);
     const auto near = index.nearest(centre, style.extent + half_diagonal);
     if (!near) continue;
-    addTile(world, terrain, corner, near->distance < kFineRadius ? style.ground_cell : kCoarseCell);
+    addTile(world, terrain, corner,
+            near->distance < kFineRadius ? style.ground_cell : kCoarseGroundCell);
   }
 }
 

@@ -77,6 +77,9 @@ struct PoseKey {
 /// "a" for robot 0, "b" for robot 1, ...; numbers past 'z'.
 std::string robotName(RobotId robot);
 
+/// A pose as messages and errors name it: "b12" for robot 1's keyframe 12.
+std::string keyName(const PoseKey& key);
+
 }  // namespace dcl::core
 
 template <class Tag, class Int>

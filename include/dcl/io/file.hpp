@@ -147,4 +147,17 @@ class ByteReader {
   std::size_t offset_ = 0;
 };
 
+/// How far from 1 the norm of a quaternion read from text may be.
+inline constexpr double kQuaternionTolerance = 1e-2;
+
+/// The shortest decimal text that reads back to exactly `value`.
+std::string exactText(double value);
+
+/// Throws core::FileError at line `line` of `path`, naming `field` when given.
+[[noreturn]] void failAtLine(const std::string& path, std::size_t line,
+                             std::optional<std::string> field, const std::string& what);
+
+/// Throws core::FileError at byte `byte` of `path`.
+[[noreturn]] void failAtByte(const std::string& path, std::uint64_t byte, const std::string& what);
+
 }  // namespace dcl::io
