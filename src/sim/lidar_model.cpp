@@ -86,14 +86,21 @@ Eigen::AlignedBox3d kittiCarBody() {
 
 }  // namespace
 
+double LidarModel::columnPhase(int column) const {
+  if (!(half_step_period > 0.0)) return static_cast<double>(column) / columns;
+  // In full steps from column 0: each completed period gives back half a step.
+  const auto position = [&](int c) { return c - 0.5 * std::floor(c / half_step_period); };
+  return position(column) / position(columns);
+}
+
 LidarModel LidarModel::hdl64() {
   LidarModel model;
   model.name = "hdl64";
   model.elevations_deg = hdl64Elevations();
-  // KITTI sweeps hold about 2083 firings per ring (0.173 deg); 2000 columns
-  // (0.18 deg) keep the azimuth step round and, after dropout and sky, give
-  // the 120k-125k returns of a KITTI scan.
-  model.columns = 2000;
+  // KITTI's rings step 0.179 deg from firing to firing, but every 6.8th
+  // step or so is half that (15 % of the steps): up to 2160 firings a ring.
+  model.columns = 2160;
+  model.half_step_period = 6.8;
   model.rate_hz = 10.0;
   model.min_range = 0.9;
   // The data sheet's 120 m; KITTI's published scans stop at about 80 m

@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -16,7 +17,7 @@ TEST(LidarModel, Hdl64HasKittiGeometry) {
   EXPECT_NEAR(m.elevations_deg.back(), 2.0, 1e-9);     // top beam
   EXPECT_NEAR(m.elevations_deg.front(), -24.8, 1e-9);  // bottom beam
   EXPECT_TRUE(std::is_sorted(m.elevations_deg.begin(), m.elevations_deg.end()));
-  EXPECT_EQ(m.columns, 2000);
+  EXPECT_EQ(m.columns, 2160);
   EXPECT_DOUBLE_EQ(m.rate_hz, 10.0);
   EXPECT_DOUBLE_EQ(m.max_range, 120.0);
   // Range noise from about 1.5 cm near to 3.5 cm far, as KITTI's sweeps show
@@ -32,8 +33,30 @@ TEST(LidarModel, Hdl64HasKittiGeometry) {
   EXPECT_LT(m.dropout, 0.1);
   EXPECT_GT(m.dark_dropout, m.dropout);  // weak echoes fade first
   EXPECT_DOUBLE_EQ(m.mount_height, 1.73);
-  EXPECT_EQ(m.raysPerScan(), 128000u);
+  EXPECT_EQ(m.raysPerScan(), 138240u);
   EXPECT_DOUBLE_EQ(m.sweepDuration(), 0.1);
+}
+
+// KITTI's rings step 0.179 deg from firing to firing, and one step in 6.8
+// is half that (bench sensor's "half steps along a ring": 14.7-15.2 %).
+TEST(LidarModel, Hdl64FiresAHalfStepAboutOneStepInSeven) {
+  const LidarModel m = LidarModel::hdl64();
+  EXPECT_DOUBLE_EQ(m.columnPhase(0), 0.0);
+  std::vector<double> steps;
+  for (int c = 1; c < m.columns; ++c)
+    steps.push_back(360.0 * (m.columnPhase(c) - m.columnPhase(c - 1)));
+  ASSERT_LT(m.columnPhase(m.columns - 1), 1.0);
+  const double full = *std::max_element(steps.begin(), steps.end());
+  EXPECT_NEAR(full, 0.179, 0.002);
+  std::size_t halves = 0;
+  for (const double step : steps) {
+    EXPECT_TRUE(std::abs(step - full) < 1e-9 || std::abs(step - 0.5 * full) < 1e-9) << step;
+    halves += step < 0.75 * full;
+  }
+  EXPECT_NEAR(static_cast<double>(halves) / static_cast<double>(steps.size()), 1.0 / 6.8, 0.005);
+  // The VLP-16 (no real sweep to hold it to) fires evenly.
+  const LidarModel v = LidarModel::vlp16();
+  EXPECT_DOUBLE_EQ(v.columnPhase(900), 0.5);
 }
 
 TEST(LidarModel, Hdl64BlocksAreDenseAboveAndSparseBelow) {

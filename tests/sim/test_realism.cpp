@@ -162,16 +162,9 @@ std::vector<eval::ScanStatistics> realSweepStatistics() {
 // (the simulated city's spans 0.7-5 %, the real residential street's 4-5 %),
 // and how far the most scattered of them spread is at the real band's lower
 // edge with solid crowns (8.2 cm against 9.0-10.1 cm; foliage_depth of
-// 0.25-0.5 m puts it inside, but it stays off, see lidar_model.cpp);
-// KITTI's HDL-64E fires one laser in seven or so half a step off its column,
-// which the simulator's regular columns do not; the mean intensity of all
-// returns is 0.41-0.44 against KITTI's 0.27-0.30, though the spread within
-// 40 m matches (KITTI's bright returns crowd just above 0.3, as from a
-// receiver that compresses strong echoes; no such response was found yet
-// that keeps the spread).
+// 0.25-0.5 m puts it inside, but it stays off, see lidar_model.cpp).
 bool notModelled(const std::string& name) {
-  return name.starts_with("scattered") || name.starts_with("half steps") ||
-         name == "mean intensity";
+  return name.starts_with("scattered");
 }
 
 TEST(Realism, CityHdl64SensorImperfectionsMatchRealKittiScans) {

@@ -40,6 +40,10 @@ struct LidarModel {
   /// deg, Gaussian jitter of each firing's azimuth (the lasers' timing); the
   /// point is reported along the azimuth it was really fired at.
   double azimuth_jitter_deg = 0.0;
+  /// Every `half_step_period` firings on average (0: never), a firing comes
+  /// half an azimuth step after the one before it, along every ring, as about
+  /// one step in seven of KITTI's HDL-64E does. At least 2 when set.
+  double half_step_period = 0.0;
   /// What a unit's factory calibration leaves: each laser's true elevation
   /// and range zero deviate from the published table by a fixed amount, drawn
   /// once per unit (BeamCalibration) with these standard deviations. The
@@ -56,10 +60,14 @@ struct LidarModel {
 
   /// Seconds one revolution takes.
   [[nodiscard]] double sweepDuration() const { return 1.0 / rate_hz; }
+  /// Where in the revolution column `column` fires, in [0, 1): evenly spaced
+  /// columns, or with a half step every `half_step_period` firings.
+  [[nodiscard]] double columnPhase(int column) const;
   /// Beams times columns.
   [[nodiscard]] std::size_t raysPerScan() const { return elevations_deg.size() * columns; }
 
-  /// Velodyne HDL-64E as on KITTI: 64 beams from +2 to -24.8 deg, about 2000 columns, 120 m.
+  /// Velodyne HDL-64E as on KITTI: 64 beams from +2 to -24.8 deg, 2160 columns
+  /// with KITTI's half steps, 120 m.
   static LidarModel hdl64();
   /// Velodyne VLP-16: 16 beams at +/-15 deg (2 deg apart), 1800 columns, 100 m.
   static LidarModel vlp16();
