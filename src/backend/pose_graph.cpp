@@ -5,7 +5,6 @@
 #include <dcl/core/error.hpp>
 
 namespace dcl::backend {
-namespace {}  // namespace
 
 std::string_view toString(FactorKind kind) {
   switch (kind) {

@@ -169,7 +169,7 @@ std::string_view ByteReader::readLine(const char* what) {
 }
 
 void ByteReader::fail(const std::string& what) const {
-  throw FileError(FileLocation{path_, std::nullopt, offset_, std::nullopt}, what);
+  failAtByte(path_, offset_, what);
 }
 
 std::string exactText(double value) {

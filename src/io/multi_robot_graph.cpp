@@ -69,9 +69,9 @@ std::string describe(const VertexSource& at) {
 /// The number of a robot graph's file name "<number>.g2o"; none for other names.
 std::optional<std::uint64_t> robotNumber(const fs::path& path) {
   const std::string name = path.filename().string();
+  if (name.size() < 5 || !name.ends_with(".g2o")) return std::nullopt;
   const std::string_view stem = std::string_view(name).substr(0, name.size() - 4);
-  if (name.size() < 5 || !name.ends_with(".g2o") ||
-      !std::all_of(stem.begin(), stem.end(), [](char c) { return c >= '0' && c <= '9'; }))
+  if (!std::all_of(stem.begin(), stem.end(), [](char c) { return c >= '0' && c <= '9'; }))
     return std::nullopt;
   const auto number = parseNumber<std::uint64_t>(stem);
   if (!number) throw core::FileError({.path = path.string()}, "robot number too large");
