@@ -18,6 +18,12 @@ namespace {
 /// (KITTI metric), with these 0.15 %.
 constexpr double kElevationErrorSigmaDeg = 0.15;
 constexpr double kRangeOffsetSigma = 0.02;
+/// The unit-wide elevation error (LidarModel::elevation_bias_mean_deg): KITTI's
+/// HDL-64E's, as the published corrections of its scans give it, and for the
+/// VLP-16, of which no real sweep is at hand, a unit drawn with the same
+/// order of error either way.
+constexpr double kKittiElevationBiasDeg = 0.205;
+constexpr double kElevationBiasSigmaDeg = 0.2;
 
 /// A standard normal from `random` (Box-Muller on two uniforms in (0, 1]).
 double gaussian(detail::Rng& random) {
@@ -109,6 +115,7 @@ LidarModel LidarModel::hdl64() {
   applyMeasuredImperfections(model);
   model.elevation_error_sigma_deg = kElevationErrorSigmaDeg;
   model.range_offset_sigma = kRangeOffsetSigma;
+  model.elevation_bias_mean_deg = kKittiElevationBiasDeg;
   model.mount_height = 1.73;  // KITTI's Velodyne above the road
   model.ego_body = kittiCarBody();
   return model;
@@ -125,6 +132,7 @@ LidarModel LidarModel::vlp16() {
   applyMeasuredImperfections(model);
   model.elevation_error_sigma_deg = kElevationErrorSigmaDeg;
   model.range_offset_sigma = kRangeOffsetSigma;
+  model.elevation_bias_sigma_deg = kElevationBiasSigmaDeg;
   model.mount_height = 0.7;       // on top of a Husky/Jackal-size ground robot
   model.ego_body = std::nullopt;  // a small robot's body stays below the -15 deg cone
   return model;
@@ -132,12 +140,18 @@ LidarModel LidarModel::vlp16() {
 
 BeamCalibration BeamCalibration::draw(const LidarModel& model, std::uint64_t seed) {
   BeamCalibration unit;
-  if (model.elevation_error_sigma_deg <= 0.0 && model.range_offset_sigma <= 0.0) return unit;
+  if (model.elevation_error_sigma_deg <= 0.0 && model.range_offset_sigma <= 0.0 &&
+      model.elevation_bias_mean_deg == 0.0 && model.elevation_bias_sigma_deg <= 0.0) {
+    return unit;
+  }
   detail::Rng random(seed);
   for (std::size_t ring = 0; ring < model.elevations_deg.size(); ++ring) {
     unit.elevation_error_deg.push_back(model.elevation_error_sigma_deg * gaussian(random));
     unit.range_offset.push_back(model.range_offset_sigma * gaussian(random));
   }
+  // Drawn after the lasers', so that a unit's per-laser errors do not depend on it.
+  unit.elevation_bias_deg =
+      model.elevation_bias_mean_deg + model.elevation_bias_sigma_deg * gaussian(random);
   return unit;
 }
 

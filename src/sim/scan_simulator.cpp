@@ -167,7 +167,8 @@ class UnitBeams {
     }
     for (std::size_t r = 0; r < model.elevations_deg.size(); ++r) {
       const double tabled = core::deg2rad(model.elevations_deg[r]);
-      const double real = core::deg2rad(model.elevations_deg[r] + unit.elevation_error_deg[r]);
+      const double real = core::deg2rad(model.elevations_deg[r] + unit.elevation_error_deg[r] +
+                                        unit.elevation_bias_deg);
       horizontal_scale_.push_back(static_cast<float>(std::cos(real) / std::cos(tabled)));
       vertical_.push_back(static_cast<float>(std::sin(real)));
       range_offset_.push_back(static_cast<float>(unit.range_offset[r]));

@@ -119,7 +119,42 @@ TEST(BeamCalibration, EachUnitIsDrawnFromItsSeedWithTheModelsSpread) {
   LidarModel perfect = m;
   perfect.elevation_error_sigma_deg = 0.0;
   perfect.range_offset_sigma = 0.0;
+  perfect.elevation_bias_sigma_deg = 0.0;
   EXPECT_TRUE(BeamCalibration::draw(perfect, 7).empty());
+}
+
+TEST(BeamCalibration, AUnitsLasersShareOneElevationBias) {
+  // The HDL-64 as on KITTI carries KITTI's unit-wide error: its scans need
+  // every elevation raised by about 0.2 deg.
+  const LidarModel hdl64 = LidarModel::hdl64();
+  for (const std::uint64_t seed : {1, 2, 3}) {
+    EXPECT_NEAR(BeamCalibration::draw(hdl64, seed).elevation_bias_deg, 0.205, 1e-12);
+  }
+  // A VLP-16 unit draws its own, either way, with the model's spread; the
+  // per-laser errors do not change with it.
+  const LidarModel vlp16 = LidarModel::vlp16();
+  double square = 0.0;
+  int positive = 0;
+  constexpr int kUnits = 500;
+  for (int seed = 0; seed < kUnits; ++seed) {
+    const double bias = BeamCalibration::draw(vlp16, seed).elevation_bias_deg;
+    square += bias * bias;
+    positive += bias > 0.0 ? 1 : 0;
+  }
+  EXPECT_NEAR(std::sqrt(square / kUnits), vlp16.elevation_bias_sigma_deg,
+              0.1 * vlp16.elevation_bias_sigma_deg);
+  EXPECT_GT(positive, kUnits / 3);
+  EXPECT_LT(positive, 2 * kUnits / 3);
+  LidarModel unbiased = vlp16;
+  unbiased.elevation_bias_sigma_deg = 0.0;
+  EXPECT_EQ(BeamCalibration::draw(unbiased, 7).elevation_error_deg,
+            BeamCalibration::draw(vlp16, 7).elevation_error_deg);
+  EXPECT_EQ(BeamCalibration::draw(unbiased, 7).elevation_bias_deg, 0.0);
+  // A model with only the bias still makes an imperfect unit.
+  LidarModel only_bias = hdl64;
+  only_bias.elevation_error_sigma_deg = 0.0;
+  only_bias.range_offset_sigma = 0.0;
+  EXPECT_FALSE(BeamCalibration::draw(only_bias, 7).empty());
 }
 
 TEST(LidarModel, ByNameFindsBothAndNamesTheChoicesOtherwise) {

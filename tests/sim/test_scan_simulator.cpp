@@ -57,14 +57,19 @@ World roomWorld() {
   return world;
 }
 
+/// Flat road at z = 0, `half` metres each way from the origin.
+void addRoad(World& world, float half) {
+  const auto a = world.addVertex({-half, -half, 0.f});
+  const auto b = world.addVertex({half, -half, 0.f});
+  const auto c = world.addVertex({half, half, 0.f});
+  const auto d = world.addVertex({-half, half, 0.f});
+  world.addQuad(a, b, c, d, Surface::road);
+}
+
 /// A few objects on a ground quad: enough shapes to test exactness on.
 World smallStreetWorld() {
   World world;
-  const auto a = world.addVertex({-60.f, -60.f, 0.f});
-  const auto b = world.addVertex({60.f, -60.f, 0.f});
-  const auto c = world.addVertex({60.f, 60.f, 0.f});
-  const auto d = world.addVertex({-60.f, 60.f, 0.f});
-  world.addQuad(a, b, c, d, Surface::road);
+  addRoad(world, 60.f);
   world.addBox(poseAt(10.0, 8.0, 0.0, 0.3), {8.0, 5.0, 6.0}, Surface::building);
   world.addBox(poseAt(-6.0, -9.0, 0.0, -0.2), {10.0, 4.0, 9.0}, Surface::building);
   world.addBox(poseAt(4.0, -4.0, 0.25, 1.0), {4.3, 1.8, 1.3},
@@ -452,6 +457,40 @@ TEST(ScanSimulator, AMiscalibratedLaserBendsAWallAsItsErrorsSay) {
   } catch (const core::Error& e) {
     EXPECT_NE(std::string(e.what()).find("vlp16"), std::string::npos) << e.what();
   }
+}
+
+TEST(ScanSimulator, AUnitWideElevationBiasBendsFlatGroundIntoACone) {
+  // Every laser 0.205 deg above its tabled elevation, as KITTI's unit: a beam
+  // of tabled elevation e meets flat ground h below at the range
+  // h / sin(-(e + bias)), reported along e, so the ground seems to fall away
+  // with distance by about tan(bias) per metre (7 cm at 20 m).
+  const LidarModel model = LidarModel::hdl64();
+  BeamCalibration unit;
+  unit.elevation_error_deg.assign(model.elevations_deg.size(), 0.0);
+  unit.range_offset.assign(model.elevations_deg.size(), 0.0);
+  unit.elevation_bias_deg = 0.205;
+  World world;
+  addRoad(world, 200.f);
+  LidarModel bodiless = model;
+  bodiless.ego_body = std::nullopt;
+  const ScanSimulator sim(world, bodiless, kExact);
+  const double h = 1.73;
+  const auto cone = sim.scan(still(poseAt(0, 0, h)), 0.0, 1, unit);
+  const auto flat = sim.scan(still(poseAt(0, 0, h)), 0.0, 1);
+  ASSERT_GT(cone.size(), 10000u);
+  int far = 0;
+  for (std::size_t i = 0; i < cone.size(); ++i) {
+    const double tabled = core::deg2rad(model.elevations_deg[cone.ring[i]]);
+    const double range = h / std::sin(-(tabled + core::deg2rad(0.205)));
+    EXPECT_NEAR(cone.points[i].z(), range * std::sin(tabled), 2e-3) << "ring " << cone.ring[i];
+    const double distance = cone.points[i].head<2>().norm();
+    if (distance > 20.0) {
+      ++far;
+      EXPECT_LT(cone.points[i].z(), -h - 0.06) << "at " << distance << " m";
+    }
+  }
+  EXPECT_GT(far, 1000);
+  for (std::size_t i = 0; i < flat.size(); ++i) EXPECT_NEAR(flat.points[i].z(), -h, 2e-3);
 }
 
 TEST(ScanSimulator, RefusesAnEmptyTrajectoryAndABrokenModel) {
