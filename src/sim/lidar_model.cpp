@@ -18,12 +18,12 @@ namespace {
 /// (KITTI metric), with these 0.15 %.
 constexpr double kElevationErrorSigmaDeg = 0.15;
 constexpr double kRangeOffsetSigma = 0.02;
-/// The unit-wide elevation error (LidarModel::elevation_bias_mean_deg): KITTI's
-/// HDL-64E's, as the published corrections of its scans give it, and for the
-/// VLP-16, of which no real sweep is at hand, a unit drawn with the same
-/// order of error either way.
+/// The unit-wide elevation error (LidarModel::elevation_bias_mean_deg) of
+/// KITTI's HDL-64E, as the published corrections of its scans give it. The
+/// VLP-16 has none: no real sweep of one is at hand to measure it on, and
+/// two units of opposite errors of that size no longer verify each other's
+/// places where the crossing preset's robots meet.
 constexpr double kKittiElevationBiasDeg = 0.205;
-constexpr double kElevationBiasSigmaDeg = 0.2;
 
 /// A standard normal from `random` (Box-Muller on two uniforms in (0, 1]).
 double gaussian(detail::Rng& random) {
@@ -132,7 +132,6 @@ LidarModel LidarModel::vlp16() {
   applyMeasuredImperfections(model);
   model.elevation_error_sigma_deg = kElevationErrorSigmaDeg;
   model.range_offset_sigma = kRangeOffsetSigma;
-  model.elevation_bias_sigma_deg = kElevationBiasSigmaDeg;
   model.mount_height = 0.7;       // on top of a Husky/Jackal-size ground robot
   model.ego_body = std::nullopt;  // a small robot's body stays below the -15 deg cone
   return model;

@@ -130,9 +130,12 @@ TEST(BeamCalibration, AUnitsLasersShareOneElevationBias) {
   for (const std::uint64_t seed : {1, 2, 3}) {
     EXPECT_NEAR(BeamCalibration::draw(hdl64, seed).elevation_bias_deg, 0.205, 1e-12);
   }
-  // A VLP-16 unit draws its own, either way, with the model's spread; the
-  // per-laser errors do not change with it.
-  const LidarModel vlp16 = LidarModel::vlp16();
+  // The VLP-16, with no real sweep to measure it on, has none; a model given
+  // a spread draws each unit's own, either way, and the per-laser errors do
+  // not change with it.
+  EXPECT_EQ(BeamCalibration::draw(LidarModel::vlp16(), 7).elevation_bias_deg, 0.0);
+  LidarModel vlp16 = LidarModel::vlp16();
+  vlp16.elevation_bias_sigma_deg = 0.2;
   double square = 0.0;
   int positive = 0;
   constexpr int kUnits = 500;

@@ -42,19 +42,19 @@ std::uint64_t checksum(const core::PointCloud& cloud) {
 
 /// The scans of a preset that are checked: three of its first robot and one
 /// of its last, spread over their drives.
-struct Expected {
+struct ExpectedChecksums {
   std::string preset;
   std::vector<std::uint64_t> checksums;  ///< first robot at 0, 1/2, 1; last robot at 1/3
 };
 
-void PrintTo(const Expected& expected, std::ostream* os) {
+void PrintTo(const ExpectedChecksums& expected, std::ostream* os) {
   *os << expected.preset;
 }
 
-class ScanChecksums : public ::testing::TestWithParam<Expected> {};
+class ScanChecksums : public ::testing::TestWithParam<ExpectedChecksums> {};
 
 TEST_P(ScanChecksums, MatchTheCommittedValues) {
-  const Expected& expected = GetParam();
+  const ExpectedChecksums& expected = GetParam();
   PresetOptions options;
   options.data_dir = DCL_DATA_DIR;
   const auto folder = test::freshDir();
@@ -80,38 +80,38 @@ TEST_P(ScanChecksums, MatchTheCommittedValues) {
 }
 
 /// The committed checksums, one entry a preset.
-const std::vector<Expected>& committed() {
-  static const std::vector<Expected> table{
-      Expected{"kitti00-3",
-               {0x5543b37ac17b08a4ULL, 0xafc6395625503240ULL, 0x4965d88fdadd1e7cULL,
-                0xa0305ea10e40ea8dULL}},
-      Expected{"kitti05-3",
-               {0x7598e381c5c27d02ULL, 0x9019ef3febfe7cc5ULL, 0xc669887723d7ef61ULL,
-                0x348252ab6adb7a81ULL}},
-      Expected{"kitti08-2",
-               {0x6ea4b6204598ac08ULL, 0x1d2d6bc53740cd1fULL, 0x6a655bc4f38616c8ULL,
-                0x20c9247f9a8e5e9aULL}},
-      Expected{"campus-3",
-               {0x89428aa5a3dff71dULL, 0x2e888f1551f56ee2ULL, 0x3c99f4b3ea826d0dULL,
-                0xbc8e383c1d2e8d72ULL}},
-      Expected{"campus-9",
-               {0xfeba64db85f3d35bULL, 0x8bebb7a937e45e26ULL, 0xb6e067ff72344d9cULL,
-                0x62b89c22b916c336ULL}},
-      Expected{"aliasing-3",
-               {0x5b82287c805c3562ULL, 0x86623afabb3ced60ULL, 0xa43ea67671f67284ULL,
-                0xca27fb2d4de91f37ULL}},
-      Expected{"crossing-2",
-               {0x10cfcfcdf751cd34ULL, 0xbae46833077f59c9ULL, 0x0b6f69293cf00722ULL,
-                0xec75aac293e112baULL}},
-      Expected{"demo",
-               {0x4e3d6d49bcf8d395ULL, 0x0253f9d54d0b89b8ULL, 0x3b405a6801f08d6bULL,
-                0xf94325a4388b1eeaULL}}};
+const std::vector<ExpectedChecksums>& committed() {
+  static const std::vector<ExpectedChecksums> table{
+      ExpectedChecksums{"kitti00-3",
+                        {0x5543b37ac17b08a4ULL, 0xafc6395625503240ULL, 0x4965d88fdadd1e7cULL,
+                         0xa0305ea10e40ea8dULL}},
+      ExpectedChecksums{"kitti05-3",
+                        {0x7598e381c5c27d02ULL, 0x9019ef3febfe7cc5ULL, 0xc669887723d7ef61ULL,
+                         0x348252ab6adb7a81ULL}},
+      ExpectedChecksums{"kitti08-2",
+                        {0x6ea4b6204598ac08ULL, 0x1d2d6bc53740cd1fULL, 0x6a655bc4f38616c8ULL,
+                         0x20c9247f9a8e5e9aULL}},
+      ExpectedChecksums{"campus-3",
+                        {0xe6e1f12d5b3b4574ULL, 0x3a4d29bb24e19beaULL, 0x011252b403da85abULL,
+                         0x178a434da78222f4ULL}},
+      ExpectedChecksums{"campus-9",
+                        {0x2419f6cbce0dd912ULL, 0x579e99dca92deb09ULL, 0x74e30ee2f391e2f2ULL,
+                         0x613577fb3b857af0ULL}},
+      ExpectedChecksums{"aliasing-3",
+                        {0x5b82287c805c3562ULL, 0x86623afabb3ced60ULL, 0xa43ea67671f67284ULL,
+                         0xca27fb2d4de91f37ULL}},
+      ExpectedChecksums{"crossing-2",
+                        {0xc5cf70d5b7258a4eULL, 0x284bd7734e6018e0ULL, 0x1072c1905b01e65bULL,
+                         0x06e5cf5099b916fcULL}},
+      ExpectedChecksums{"demo",
+                        {0x231635b44c505f8bULL, 0xc0b77605de1337e2ULL, 0xd467830bb0e9947dULL,
+                         0x0957d4692a5585a9ULL}}};
   return table;
 }
 
 TEST(ScanChecksums, EveryPresetHasItsEntry) {
   std::vector<std::string> listed;
-  for (const Expected& e : committed()) listed.push_back(e.preset);
+  for (const ExpectedChecksums& e : committed()) listed.push_back(e.preset);
   std::vector<std::string> presets = presetNames();
   std::sort(listed.begin(), listed.end());
   std::sort(presets.begin(), presets.end());
@@ -119,7 +119,7 @@ TEST(ScanChecksums, EveryPresetHasItsEntry) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Presets, ScanChecksums, ::testing::ValuesIn(committed()),
-                         [](const ::testing::TestParamInfo<Expected>& info) {
+                         [](const ::testing::TestParamInfo<ExpectedChecksums>& info) {
                            std::string name = info.param.preset;
                            std::replace(name.begin(), name.end(), '-', '_');
                            return name;
