@@ -9,6 +9,8 @@
 #include <dcl/core/error.hpp>
 #include <dcl/io/pose_graph_g2o.hpp>
 
+#include "../common/keys.hpp"
+
 namespace dcl::backend {
 namespace {
 
@@ -16,9 +18,7 @@ core::PoseKey key(int keyframe) {
   return {core::RobotId(0), core::KeyframeId(static_cast<std::uint64_t>(keyframe))};
 }
 
-std::string dataPath(const std::string& relative) {
-  return std::string(DCL_DATA_DIR) + "/pose_graphs/" + relative;
-}
+using dcl::test::poseGraphPath;
 
 /// Poses along a climbing helix with roll and pitch wobble: every axis moves.
 std::vector<Eigen::Isometry3d> helix(int n) {
@@ -141,7 +141,7 @@ TEST(CentralizedSolver, RobustLossLimitsAWrongLoop) {
 
 /// Solves a benchmark from its file's initial estimate; returns the summary.
 SolverSummary solveBenchmark(const std::string& file) {
-  PoseGraph graph = io::readPoseGraph(dataPath(file));
+  PoseGraph graph = io::readPoseGraph(poseGraphPath(file));
   SolverConfig config;
   config.threads = 2;
   return solveCentralized(graph, config);
@@ -168,7 +168,7 @@ TEST(CentralizedSolver, Sphere2500ConvergesFromOdometry) {
 TEST(CentralizedSolver, NoiseFreeSphereSolvesToZeroCost) {
   // TORO EDGE3 lines of noise-free measurements, no vertices: chained by the reader,
   // then perturbed. The optimum is consistent up to the file's 6 printed digits.
-  PoseGraph graph = io::readPoseGraph(dataPath("3d/sphere2500_groundtruth.graph"));
+  PoseGraph graph = io::readPoseGraph(poseGraphPath("3d/sphere2500_groundtruth.graph"));
   perturb(graph, 11);
   const SolverSummary s = solveCentralized(graph);
   EXPECT_GT(s.initial_cost, 1e4);
@@ -176,7 +176,7 @@ TEST(CentralizedSolver, NoiseFreeSphereSolvesToZeroCost) {
 }
 
 TEST(CentralizedSolver, PlanarGraphLiftedTo3dSolvesAndStaysPlanar) {
-  PoseGraph graph = io::readPoseGraph(dataPath("2d/intel.g2o"));
+  PoseGraph graph = io::readPoseGraph(poseGraphPath("2d/intel.g2o"));
   const SolverSummary s = solveCentralized(graph);
   EXPECT_TRUE(s.converged) << s.message;
   EXPECT_LT(s.final_cost, 0.1 * s.initial_cost);

@@ -13,29 +13,26 @@
 #include <dcl/io/multi_robot_graph.hpp>
 #include <dcl/io/pose_graph_g2o.hpp>
 
+#include "../common/keys.hpp"
+
 namespace dcl::backend {
 namespace {
 
-core::PoseKey key(int robot, int keyframe) {
-  return {core::RobotId(static_cast<std::uint8_t>(robot)),
-          core::KeyframeId(static_cast<std::uint64_t>(keyframe))};
-}
+using dcl::test::key;
 
 core::RobotId robotId(int robot) {
   return core::RobotId(static_cast<std::uint8_t>(robot));
 }
 
-std::string dataPath(const std::string& relative) {
-  return std::string(DCL_DATA_DIR) + "/pose_graphs/" + relative;
-}
+using dcl::test::poseGraphPath;
 
 PoseGraph readGraph(const std::string& relative) {
-  return io::readPoseGraph(dataPath(relative));
+  return io::readPoseGraph(poseGraphPath(relative));
 }
 
 PoseGraph distributedMapper(int robots) {
   return io::readMultiRobotGraph(
-      dataPath("multi_robot/distributed_mapper/example_" + std::to_string(robots) + "robots"));
+      poseGraphPath("multi_robot/distributed_mapper/example_" + std::to_string(robots) + "robots"));
 }
 
 /// Poses along a climbing spiral with roll and pitch wobble, two turns: every axis moves.
@@ -54,7 +51,7 @@ std::vector<Eigen::Isometry3d> spiral(int n) {
 }
 
 /// Exact odometry and loops (each pose to the one a turn earlier) on `truth`, one robot.
-PoseGraph exactGraph(const std::vector<Eigen::Isometry3d>& truth) {
+PoseGraph exactOneRobotGraph(const std::vector<Eigen::Isometry3d>& truth) {
   PoseGraph graph;
   const core::Matrix6d information = core::Vector6d(100, 100, 100, 400, 400, 400).asDiagonal();
   const auto relative = [&](int a, int b) { return truth[a].inverse() * truth[b]; };
@@ -94,7 +91,7 @@ double maxPoseError(const PoseGraph& a, const PoseGraph& b) {
 }
 
 /// The optimum of `graph` from its chordal initialisation (the reference of every ratio).
-double centralizedOptimum(PoseGraph graph) {
+double centralizedCost(PoseGraph graph) {
   chordalInitialise(graph);
   return solveCentralized(graph).final_cost;
 }
@@ -118,7 +115,7 @@ void runAlone(DgsAgent& agent) {
 }
 
 TEST(ChordalInitialise, RecoversExactPosesOfANoiseFreeGraph) {
-  const PoseGraph truth = exactGraph(spiral(90));
+  const PoseGraph truth = exactOneRobotGraph(spiral(90));
   PoseGraph graph = truth;
   perturb(graph, 11, 2.0, 0.8);  // far from the truth: the rotation stage needs no guess
   ASSERT_GT(maxPoseError(graph, truth), 1.0);
@@ -128,7 +125,7 @@ TEST(ChordalInitialise, RecoversExactPosesOfANoiseFreeGraph) {
 }
 
 TEST(ChordalInitialise, HoldsFixedNodesAndEveryComponent) {
-  PoseGraph graph = exactGraph(spiral(40));
+  PoseGraph graph = exactOneRobotGraph(spiral(40));
   // A second piece, not linked to the first: its own lowest node holds it.
   const auto truth = spiral(40);
   for (int i = 0; i < 5; ++i) graph.addNode(key(1, i), truth[i]);
@@ -245,7 +242,7 @@ TEST(DgsAgent, AloneEqualsTheCentralizedInitialisation) {
 }
 
 TEST(Dgs, SplitNoiseFreeGraphReachesTheTruePoses) {
-  const PoseGraph truth = splitIntoRobots(exactGraph(spiral(90)), 3);
+  const PoseGraph truth = splitIntoRobots(exactOneRobotGraph(spiral(90)), 3);
   PoseGraph graph = truth;
   perturb(graph, 3, 1.0, 0.5);
   DgsConfig config;
@@ -278,7 +275,7 @@ TEST_P(DgsReal, CostWithinTheMeasuredBoundOfTheCentralizedOne) {
   const PoseGraph graph = GetParam().load();
   PoseGraph two_stage = graph;
   chordalInitialise(two_stage);
-  const double optimum = centralizedOptimum(graph);
+  const double optimum = centralizedCost(graph);
   PoseGraph dgs = graph;
   const DgsSummary summary = runDgs(dgs);
   const double cost = graphCost(dgs);
@@ -329,7 +326,7 @@ TEST(Dgs, OrderIsGreedyByEdgesFromTheAnchor) {
 }
 
 TEST(DgsAgent, DoesNotUseAnUninitialisedNeighbour) {
-  const PoseGraph graph = splitIntoRobots(exactGraph(spiral(60)), 2);
+  const PoseGraph graph = splitIntoRobots(exactOneRobotGraph(spiral(60)), 2);
   const auto locals = partitionByRobot(graph);
   const std::set<core::RobotId> group{robotId(0), robotId(1)};
   const auto run = [&](bool garbage) -> std::map<core::PoseKey, Eigen::Matrix3d> {
@@ -371,7 +368,7 @@ TEST(DgsAgent, DoesNotUseAnUninitialisedNeighbour) {
 
 /// The agents of a spiral split in two, in round 3 together.
 std::pair<DgsAgent, DgsAgent> twoRobotRound() {
-  const auto locals = partitionByRobot(splitIntoRobots(exactGraph(spiral(60)), 2));
+  const auto locals = partitionByRobot(splitIntoRobots(exactOneRobotGraph(spiral(60)), 2));
   const std::set<core::RobotId> group{robotId(0), robotId(1)};
   std::pair<DgsAgent, DgsAgent> agents{DgsAgent(robotId(0), locals.at(robotId(0))),
                                        DgsAgent(robotId(1), locals.at(robotId(1)))};
@@ -455,7 +452,7 @@ TEST(DgsAgent, ADoneMemberAnswersOneStillInItsLastStage) {
 }
 
 TEST(DgsAgent, RejectsMalformedMessagesAndIgnoresOtherRounds) {
-  const auto locals = partitionByRobot(splitIntoRobots(exactGraph(spiral(60)), 2));
+  const auto locals = partitionByRobot(splitIntoRobots(exactOneRobotGraph(spiral(60)), 2));
   DgsAgent b(robotId(1), locals.at(robotId(1)));
   b.startRound({robotId(0), robotId(1)}, 3);
   const core::PoseKey separator =
@@ -546,7 +543,7 @@ TEST(Dgs, ARobotVanishingMidRoundLeavesTheRestConsistent) {
         << int(k.robot.value()) << " " << k.keyframe.value();
   }
   // And that estimate is a good one for the graph left.
-  EXPECT_LT(graphCost(reference) / centralizedOptimum(reference), 1.6);
+  EXPECT_LT(graphCost(reference) / centralizedCost(reference), 1.6);
 }
 
 TEST(Dgs, VanishingBeforeTheFirstStepAbortsAndRetries) {

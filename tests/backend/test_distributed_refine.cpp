@@ -18,28 +18,25 @@
 #include <dcl/io/multi_robot_graph.hpp>
 #include <dcl/io/pose_graph_g2o.hpp>
 
+#include "../common/keys.hpp"
+
 namespace dcl::backend {
 namespace {
 
-std::string dataPath(const std::string& relative) {
-  return std::string(DCL_DATA_DIR) + "/pose_graphs/" + relative;
-}
+using dcl::test::poseGraphPath;
 
 /// A single-robot benchmark of pose_graphs/3d split into `robots` robots.
 PoseGraph splitBenchmark(const std::string& file, int robots) {
-  return splitIntoRobots(io::readPoseGraph(dataPath("3d/" + file)), robots);
+  return splitIntoRobots(io::readPoseGraph(poseGraphPath("3d/" + file)), robots);
 }
 
 /// A distributed-mapper example (robot i's graph in i.g2o).
 PoseGraph mapperExample(int robots) {
   return io::readMultiRobotGraph(
-      dataPath("multi_robot/distributed_mapper/example_" + std::to_string(robots) + "robots"));
+      poseGraphPath("multi_robot/distributed_mapper/example_" + std::to_string(robots) + "robots"));
 }
 
-core::PoseKey key(int robot, int keyframe) {
-  return {core::RobotId(static_cast<std::uint8_t>(robot)),
-          core::KeyframeId(static_cast<std::uint64_t>(keyframe))};
-}
+using dcl::test::key;
 
 /// The centralized optimum of `graph` (Levenberg-Marquardt from the chordal initialisation).
 PoseGraph centralizedOptimum(PoseGraph graph) {
@@ -191,7 +188,7 @@ TEST(DistributedRefine, DgsThenRefineReachesTheCentralizedOptimum) {
 TEST(DistributedRefine, CoarseStepsPricedBeforeTakenReachManhattansOptimum) {
   // manhattan in 9 robots: every robot's part criss-crosses the whole map, and
   // coarse blocks a round old make the coarse step rise at every length.
-  PoseGraph start = splitIntoRobots(io::readPoseGraph(dataPath("2d/manhattan.g2o")), 9);
+  PoseGraph start = splitIntoRobots(io::readPoseGraph(poseGraphPath("2d/manhattan.g2o")), 9);
   const double optimum = graphCost(centralizedOptimum(start));
   (void)runDgs(start);
   RefineConfig config;
@@ -256,7 +253,7 @@ TEST(DistributedRefine, CountsEverySeparatorPoseSentEveryRound) {
 }
 
 TEST(DistributedRefine, ASingleRobotEqualsTheCentralizedSolve) {
-  PoseGraph graph = io::readPoseGraph(dataPath("3d/smallGrid3D.g2o"));
+  PoseGraph graph = io::readPoseGraph(poseGraphPath("3d/smallGrid3D.g2o"));
   PoseGraph centralized = graph;
   (void)solveCentralized(centralized);
   const RefineSummary s = refineDistributed(graph);
@@ -283,7 +280,7 @@ TEST(DistributedRefine, ARobotWithoutInterRobotFactorsIsSolvedAlone) {
   // Robots 0 and 1 of a distributed-mapper example, and robot 5: tinyGrid3D, met by no one.
   PoseGraph graph = mapperExample(2);
   const Eigen::Isometry3d T_first = graph.nodes().begin()->second;
-  const PoseGraph alone = asRobot(io::readPoseGraph(dataPath("3d/tinyGrid3D.g2o")), 5);
+  const PoseGraph alone = asRobot(io::readPoseGraph(poseGraphPath("3d/tinyGrid3D.g2o")), 5);
   for (const auto& [k, T] : alone.nodes()) graph.addNode(k, T);
   for (const Factor& f : alone.factors()) graph.addFactor(f);
   PoseGraph alone_solved = alone;
@@ -533,7 +530,7 @@ TEST(RefineAgent, HeldNeighbourPosesStayPutAndTheirFactorsAreOwned) {
 }
 
 TEST(CentralizedInitialisation, ChordalStartReachesTheSameOptimumFromCloser) {
-  const PoseGraph start = io::readPoseGraph(dataPath("3d/smallGrid3D.g2o"));
+  const PoseGraph start = io::readPoseGraph(poseGraphPath("3d/smallGrid3D.g2o"));
   PoseGraph as_is = start;
   PoseGraph chordal = start;
   const SolverSummary a = solveCentralized(as_is);
@@ -634,7 +631,7 @@ PoseGraph moved(PoseGraph graph, const std::map<core::RobotId, RefineAgent>& age
 }
 
 TEST(CoarseShare, GradientIsTheGraphCostsDerivativeAlongACoarseMotion) {
-  PoseGraph graph = splitIntoRobots(io::readPoseGraph(dataPath("3d/smallGrid3D.g2o")), 3);
+  PoseGraph graph = splitIntoRobots(io::readPoseGraph(poseGraphPath("3d/smallGrid3D.g2o")), 3);
   const auto agents = makeAgents(graph, {});
   std::map<CoarseNode, core::Vector6d> gradient;
   for (const auto& [robot, agent] : agents) {

@@ -13,13 +13,12 @@
 #include <dcl/backend/pcm_evaluation.hpp>
 #include <dcl/io/multi_robot_graph.hpp>
 
+#include "../common/keys.hpp"
+
 namespace dcl::backend {
 namespace {
 
-core::PoseKey key(int robot, int keyframe) {
-  return {core::RobotId(static_cast<std::uint8_t>(robot)),
-          core::KeyframeId(static_cast<std::uint64_t>(keyframe))};
-}
+using dcl::test::key;
 
 core::Matrix6d information(double sigma_translation, double sigma_rotation) {
   const double t = 1.0 / (sigma_translation * sigma_translation);
@@ -91,7 +90,7 @@ struct ThreeRobots {
   }
 };
 
-std::set<LoopId> idsOf(const std::vector<Factor>& loops) {
+std::set<LoopId> loopIdsOf(const std::vector<Factor>& loops) {
   std::set<LoopId> ids;
   for (const Factor& f : loops) ids.insert(loopId(f));
   return ids;
@@ -121,13 +120,13 @@ TEST_P(LoopCheckSeeds, AConsistentWrongClusterIsWithdrawnThroughAThirdRobot) {
   PcmResult pcm = runPcm(s.graph, published);
   for (const PcmPairResult& pair : pcm.pairs) {
     if (pair.robot_a == core::RobotId(0) && pair.robot_b == core::RobotId(1)) {
-      EXPECT_EQ(idsOf(pair.decision.accepted), idsOf(s.wrong_loops));
+      EXPECT_EQ(loopIdsOf(pair.decision.accepted), loopIdsOf(s.wrong_loops));
     }
   }
   PoseGraph graph = s.graph;
   const std::vector<LoopId> withdrawn = withdrawUnexplained(graph, {}, chordal());
-  EXPECT_EQ(std::set<LoopId>(withdrawn.begin(), withdrawn.end()), idsOf(s.wrong_loops));
-  EXPECT_EQ(idsOf(interRobot(graph)), idsOf(s.true_loops));
+  EXPECT_EQ(std::set<LoopId>(withdrawn.begin(), withdrawn.end()), loopIdsOf(s.wrong_loops));
+  EXPECT_EQ(loopIdsOf(interRobot(graph)), loopIdsOf(s.true_loops));
   // And the graph left is solved: every robot where the truth has it.
   for (int r = 0; r < 3; ++r) {
     const Eigen::Isometry3d T0 = graph.estimate(key(0, 0)).inverse() * graph.estimate(key(r, 20));
@@ -140,7 +139,7 @@ TEST_P(LoopCheckSeeds, TrueLoopsAreAllExplained) {
   ThreeRobots s(false, GetParam());
   PoseGraph graph = s.graph;
   EXPECT_TRUE(withdrawUnexplained(graph, {}, chordal()).empty());
-  EXPECT_EQ(idsOf(interRobot(graph)), idsOf(s.true_loops));
+  EXPECT_EQ(loopIdsOf(interRobot(graph)), loopIdsOf(s.true_loops));
 }
 
 INSTANTIATE_TEST_SUITE_P(Noise, LoopCheckSeeds, ::testing::Values(1u, 2u, 3u, 4u, 5u));

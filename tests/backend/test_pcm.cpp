@@ -14,13 +14,12 @@
 #include <dcl/core/error.hpp>
 #include <dcl/io/multi_robot_graph.hpp>
 
+#include "../common/keys.hpp"
+
 namespace dcl::backend {
 namespace {
 
-core::PoseKey key(int robot, int keyframe) {
-  return {core::RobotId(static_cast<std::uint8_t>(robot)),
-          core::KeyframeId(static_cast<std::uint64_t>(keyframe))};
-}
+using dcl::test::key;
 
 std::string outliersPath(const std::string& relative) {
   return std::string(DCL_DATA_DIR) + "/pose_graphs/multi_robot_outliers/" + relative;

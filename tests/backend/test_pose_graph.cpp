@@ -5,13 +5,12 @@
 #include <dcl/backend/pose_graph.hpp>
 #include <dcl/core/error.hpp>
 
+#include "../common/keys.hpp"
+
 namespace dcl::backend {
 namespace {
 
-core::PoseKey key(int robot, int keyframe) {
-  return {core::RobotId(static_cast<std::uint8_t>(robot)),
-          core::KeyframeId(static_cast<std::uint64_t>(keyframe))};
-}
+using dcl::test::key;
 
 Eigen::Isometry3d pose(double x, double y, double z, double yaw) {
   Eigen::Isometry3d T = core::makePose2d(x, y, yaw);

@@ -19,14 +19,13 @@
 #include <dcl/registration/cloud_codec.hpp>
 #include <dcl/registration/verification.hpp>
 
+#include "../common/keys.hpp"
 #include "../common/kitti_test_data.hpp"
 
 namespace dcl::comm {
 namespace {
 
-core::RobotId robot(int id) {
-  return core::RobotId(static_cast<std::uint8_t>(id));
-}
+using dcl::test::robot;
 
 core::KeyframeId keyframe(std::uint64_t id) {
   return core::KeyframeId(id);

@@ -30,6 +30,7 @@
 #include <dcl/place/lidar_iris.hpp>
 #include <dcl/registration/cloud_codec.hpp>
 
+#include "../common/keys.hpp"
 #include "../common/kitti_test_data.hpp"
 
 namespace dcl::comm {
@@ -48,9 +49,7 @@ constexpr std::chrono::seconds kDeliveryDeadline{5};
 /// A probe's payload: discovery traffic, never a test's message.
 const Bytes kProbe = {'p', 'r', 'o', 'b', 'e'};
 
-core::RobotId robot(int id) {
-  return core::RobotId(static_cast<std::uint8_t>(id));
-}
+using dcl::test::robot;
 
 DdsConfig loopback(std::uint32_t domain) {
   DdsConfig config;

@@ -16,14 +16,14 @@
 #include <dcl/core/se3.hpp>
 #include <dcl/place/descriptor_codec.hpp>
 
+#include "../common/keys.hpp"
+
 namespace dcl::comm {
 namespace {
 
 using core::RobotId;
 
-RobotId robot(int r) {
-  return RobotId(static_cast<std::uint8_t>(r));
-}
+using dcl::test::robot;
 
 // ---------------------------------------------------------------- an in-memory medium
 

@@ -21,7 +21,7 @@ core::Trajectory straightLine(std::size_t n, double step = 1.0) {
   return trajectory;
 }
 
-void expectStatisticsNear(const Statistics& s, const nlohmann::json& ref, double rel) {
+void expectRpeStatisticsNear(const Statistics& s, const nlohmann::json& ref, double rel) {
   EXPECT_EQ(s.count, ref.at("count").get<std::size_t>());
   for (const auto& [name, value] :
        {std::pair{"rmse", s.rmse}, std::pair{"mean", s.mean}, std::pair{"median", s.median},
@@ -188,8 +188,8 @@ TEST(Rpe, MatchesTheReferenceScriptOnKitti00) {
       options.delta = delta;
       const RpeResult r = computeRpe(pairs, options);
       EXPECT_EQ(r.pairs.size(), ref->at("pairs").get<std::size_t>());
-      expectStatisticsNear(r.translation_m, ref->at("translation_m"), 1e-9);
-      expectStatisticsNear(r.rotation_deg, ref->at("rotation_deg"), 1e-7);
+      expectRpeStatisticsNear(r.translation_m, ref->at("translation_m"), 1e-9);
+      expectRpeStatisticsNear(r.rotation_deg, ref->at("rotation_deg"), 1e-7);
       ASSERT_TRUE(r.kitti.has_value());
       const auto& k = ref->at("kitti");
       EXPECT_EQ(r.kitti->segments, k.at("segments").get<std::size_t>());
@@ -217,8 +217,8 @@ TEST(Rpe, MatchesTheReferenceScriptWithOrthonormalizedRotations) {
   RpeOptions options;
   options.alignment = Alignment::se3;
   const RpeResult r = computeRpe(associateByIndex(est, gt), options);
-  expectStatisticsNear(r.translation_m, ref->at("translation_m"), 1e-9);
-  expectStatisticsNear(r.rotation_deg, ref->at("rotation_deg"), 1e-7);
+  expectRpeStatisticsNear(r.translation_m, ref->at("translation_m"), 1e-9);
+  expectRpeStatisticsNear(r.rotation_deg, ref->at("rotation_deg"), 1e-7);
   ASSERT_TRUE(r.kitti.has_value());
   EXPECT_TRUE(test::near(r.kitti->rotation_deg_per_100m,
                          ref->at("kitti").at("rotation_deg_per_100m").get<double>(), 1e-7));
@@ -236,8 +236,8 @@ TEST(Rpe, DclIoReadersMatchTheReference) {
   RpeOptions options;
   options.alignment = Alignment::sim3;
   const RpeResult r = computeRpe(associateByIndex(est, gt), options);
-  expectStatisticsNear(r.translation_m, ref->at("translation_m"), 1e-9);
-  expectStatisticsNear(r.rotation_deg, ref->at("rotation_deg"), 1e-7);
+  expectRpeStatisticsNear(r.translation_m, ref->at("translation_m"), 1e-9);
+  expectRpeStatisticsNear(r.rotation_deg, ref->at("rotation_deg"), 1e-7);
   ASSERT_TRUE(r.kitti.has_value());
   EXPECT_TRUE(test::near(r.kitti->translation_percent,
                          ref->at("kitti").at("translation_percent").get<double>(), 1e-9));
@@ -256,8 +256,8 @@ TEST(Rpe, MatchesTheReferenceScriptOnTumPair) {
   options.alignment = Alignment::sim3;
   options.delta = 5;
   const RpeResult r = computeRpe(test::readTum(est_file), test::readTum(gt_file), options);
-  expectStatisticsNear(r.translation_m, ref->at("translation_m"), 1e-9);
-  expectStatisticsNear(r.rotation_deg, ref->at("rotation_deg"), 1e-7);
+  expectRpeStatisticsNear(r.translation_m, ref->at("translation_m"), 1e-9);
+  expectRpeStatisticsNear(r.rotation_deg, ref->at("rotation_deg"), 1e-7);
   EXPECT_FALSE(r.kitti.has_value());
   EXPECT_TRUE(ref->at("kitti").is_null());
 }

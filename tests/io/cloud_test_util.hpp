@@ -3,6 +3,7 @@
 // Helpers for the point-cloud reader tests: clouds with every channel, and
 // bit-exact comparison.
 
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
@@ -16,6 +17,15 @@
 #include "io_test_util.hpp"
 
 namespace dcl::io::test {
+
+/// `value`'s bytes appended to `out`, as a binary file stores them.
+template <class T>
+void append(std::string& out, T value) {
+  char bytes[sizeof(T)];
+  std::memcpy(bytes, &value, sizeof(T));
+  out.append(bytes, sizeof(T));
+}
+
 /// A cloud with every channel: point i at (i/4, -i/8, 3 + i/16), intensity 2i,
 /// time i/1024, ring i % 64, plus a NaN point and extreme floats.
 inline core::PointCloud fullCloud(std::size_t n) {

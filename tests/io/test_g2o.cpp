@@ -408,7 +408,7 @@ TEST(G2o, KnownCorruptDataFileNamesLineAndTag) {
   EXPECT_EQ(graph.edges.size(), 40u);
 }
 
-struct Corrupt {
+struct CorruptG2o {
   std::string name;
   std::string content;
   std::vector<std::string> expected;
@@ -425,7 +425,7 @@ std::string repeat(const std::string& text, std::size_t times) {
   return out;
 }
 
-std::vector<Corrupt> corruptGraphs() {
+std::vector<CorruptG2o> corruptGraphs() {
   return {
       {"empty", "", {":1:", "no vertices or edges"}},
       {"comments_only", "# nothing\n\n", {":3:", "no vertices or edges"}},

@@ -13,10 +13,11 @@
 namespace dcl::io {
 namespace {
 
+using test::append;
 using test::contains;
 using test::fileError;
 
-const std::string kPairDir = test::dataDir() + "/lidar_scans/hdl_outdoor_pair_fast_gicp";
+const std::string kPcdPairDir = test::dataDir() + "/lidar_scans/hdl_outdoor_pair_fast_gicp";
 
 /// A PCD header; the data lines of an ASCII body start at line 12.
 std::string header(const std::string& fields, const std::string& sizes, const std::string& types,
@@ -27,13 +28,6 @@ std::string header(const std::string& fields, const std::string& sizes, const st
          "\nCOUNT " + counts + "\nWIDTH " + std::to_string(width) + "\nHEIGHT " +
          std::to_string(height) + "\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " + n + "\nDATA " + data +
          "\n";
-}
-
-template <class T>
-void append(std::string& out, T value) {
-  char bytes[sizeof(T)];
-  std::memcpy(bytes, &value, sizeof(T));
-  out.append(bytes, sizeof(T));
 }
 
 /// A valid LZF stream of literal runs only (at most 32 bytes each, prefixed by length - 1).
@@ -70,8 +64,8 @@ class PcdTest : public ::testing::Test {
 };
 
 TEST_F(PcdTest, ReadsTheRealScans) {
-  const core::PointCloud target = readPcd(kPairDir + "/251370668.pcd");
-  const core::PointCloud source = readPcd(kPairDir + "/251371071.pcd");
+  const core::PointCloud target = readPcd(kPcdPairDir + "/251370668.pcd");
+  const core::PointCloud source = readPcd(kPcdPairDir + "/251371071.pcd");
   EXPECT_EQ(target.size(), 69088u);  // POINTS of the headers
   EXPECT_EQ(source.size(), 69792u);
   ASSERT_TRUE(target.hasIntensity());
@@ -91,7 +85,7 @@ TEST_F(PcdTest, ReadsTheRealScans) {
 }
 
 TEST_F(PcdTest, RoundTripsInEveryEncoding) {
-  const core::PointCloud real = readPcd(kPairDir + "/251371071.pcd");
+  const core::PointCloud real = readPcd(kPcdPairDir + "/251371071.pcd");
   core::PointCloud xyz;
   xyz.points = {{1, 2, 3}, {-4.5f, 0, 1e-7f}};
   for (auto encoding :
@@ -113,15 +107,15 @@ TEST_F(PcdTest, DecodesBytesInMemoryAsItReadsTheFile) {
     const std::string bytes = test::readBytes(path);
     EXPECT_TRUE(test::sameCloud(decodePcd(bytes, "memory"), readPcd(path)));
   }
-  const std::string cut = test::readBytes(kPairDir + "/251370668.pcd").substr(0, 400);
+  const std::string cut = test::readBytes(kPcdPairDir + "/251370668.pcd").substr(0, 400);
   EXPECT_TRUE(contains(fileError([&] { decodePcd(cut, "cut.pcd"); }), "cut.pcd: byte "));
   EXPECT_TRUE(contains(fileError([&] { decodePcd({}, "none.pcd"); }), "none.pcd"));
 }
 
 TEST_F(PcdTest, BinaryWriterReproducesTheRealFileData) {
-  const std::string original = test::readBytes(kPairDir + "/251370668.pcd");
+  const std::string original = test::readBytes(kPcdPairDir + "/251370668.pcd");
   const std::string path = (dir_ / "copy.pcd").string();
-  writePcd(path, readPcd(kPairDir + "/251370668.pcd"));
+  writePcd(path, readPcd(kPcdPairDir + "/251370668.pcd"));
   const std::string copy = test::readBytes(path);
   const std::string marker = "DATA binary\n";
   EXPECT_EQ(copy.substr(copy.find(marker)), original.substr(original.find(marker)));
@@ -204,7 +198,7 @@ TEST_F(PcdTest, EmptyFileIsAnError) {
 }
 
 TEST_F(PcdTest, TruncatedHeaderNamesTheLine) {
-  const std::string bytes = test::readBytes(kPairDir + "/251370668.pcd");
+  const std::string bytes = test::readBytes(kPcdPairDir + "/251370668.pcd");
   struct Cut {
     std::string until;  // cut right after this text
     std::string expected;
@@ -220,7 +214,7 @@ TEST_F(PcdTest, TruncatedHeaderNamesTheLine) {
 }
 
 TEST_F(PcdTest, TruncatedBinaryDataNamesTheByteAndPoint) {
-  const std::string bytes = test::readBytes(kPairDir + "/251370668.pcd");
+  const std::string bytes = test::readBytes(kPcdPairDir + "/251370668.pcd");
   const std::size_t data = bytes.find("DATA binary\n") + 12;
   for (std::size_t points : {std::size_t{0}, std::size_t{100}, std::size_t{69087}}) {
     SCOPED_TRACE(points);

@@ -14,10 +14,11 @@
 namespace dcl::io {
 namespace {
 
+using test::append;
 using test::contains;
 using test::fileError;
 
-const std::string kPairDir = test::dataDir() + "/lidar_scans/small_gicp_pair";
+const std::string kPlyPairDir = test::dataDir() + "/lidar_scans/small_gicp_pair";
 
 /// `value` in big-endian byte order.
 template <class T>
@@ -25,13 +26,6 @@ void appendBigEndian(std::string& out, T value) {
   char bytes[sizeof(T)];
   std::memcpy(bytes, &value, sizeof(T));
   std::reverse(bytes, bytes + sizeof(T));
-  out.append(bytes, sizeof(T));
-}
-
-template <class T>
-void append(std::string& out, T value) {
-  char bytes[sizeof(T)];
-  std::memcpy(bytes, &value, sizeof(T));
   out.append(bytes, sizeof(T));
 }
 
@@ -49,8 +43,8 @@ class PlyTest : public ::testing::Test {
 };
 
 TEST_F(PlyTest, ReadsTheRealScans) {
-  const core::PointCloud source = readPly(kPairDir + "/source.ply");
-  const core::PointCloud target = readPly(kPairDir + "/target.ply");
+  const core::PointCloud source = readPly(kPlyPairDir + "/source.ply");
+  const core::PointCloud target = readPly(kPlyPairDir + "/target.ply");
   EXPECT_EQ(source.size(), 69792u);  // element vertex of the headers
   EXPECT_EQ(target.size(), 69088u);
   ASSERT_TRUE(target.hasIntensity());  // from CloudCompare's scalar_intensity
@@ -60,7 +54,7 @@ TEST_F(PlyTest, ReadsTheRealScans) {
 }
 
 TEST_F(PlyTest, RoundTripsInBothEncodings) {
-  const core::PointCloud real = readPly(kPairDir + "/target.ply");
+  const core::PointCloud real = readPly(kPlyPairDir + "/target.ply");
   core::PointCloud xyz;
   xyz.points = {{1, 2, 3}, {-4.5f, 0, 1e-7f}};
   for (auto encoding : {PlyEncoding::kAscii, PlyEncoding::kBinaryLittleEndian}) {
@@ -80,7 +74,7 @@ TEST_F(PlyTest, DecodesBytesInMemoryAsItReadsTheFile) {
     const std::string bytes = test::readBytes(path);
     EXPECT_TRUE(test::sameCloud(decodePly(bytes, "memory"), readPly(path)));
   }
-  const std::string cut = test::readBytes(kPairDir + "/target.ply").substr(0, 400);
+  const std::string cut = test::readBytes(kPlyPairDir + "/target.ply").substr(0, 400);
   EXPECT_TRUE(contains(fileError([&] { decodePly(cut, "cut.ply"); }), "cut.ply: byte "));
   EXPECT_TRUE(contains(fileError([&] { decodePly({}, "none.ply"); }), "none.ply"));
 }
@@ -154,7 +148,7 @@ TEST_F(PlyTest, EmptyFileIsAnError) {
 }
 
 TEST_F(PlyTest, TruncatedHeaderNamesTheLine) {
-  const std::string bytes = test::readBytes(kPairDir + "/target.ply");
+  const std::string bytes = test::readBytes(kPlyPairDir + "/target.ply");
   struct Cut {
     std::string until, expected;
   };
@@ -169,7 +163,7 @@ TEST_F(PlyTest, TruncatedHeaderNamesTheLine) {
 }
 
 TEST_F(PlyTest, TruncatedBinaryDataNamesTheByteAndVertex) {
-  const std::string bytes = test::readBytes(kPairDir + "/target.ply");
+  const std::string bytes = test::readBytes(kPlyPairDir + "/target.ply");
   const std::size_t data = bytes.find("end_header\n") + 11;
   for (std::size_t vertices : {std::size_t{0}, std::size_t{7}, std::size_t{69087}}) {
     SCOPED_TRACE(vertices);

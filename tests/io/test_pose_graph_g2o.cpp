@@ -8,6 +8,7 @@
 #include <dcl/io/g2o.hpp>
 #include <dcl/io/pose_graph_g2o.hpp>
 
+#include "../common/keys.hpp"
 #include "io_test_util.hpp"
 
 namespace dcl::io {
@@ -17,10 +18,7 @@ using backend::Factor;
 using backend::FactorKind;
 using backend::PoseGraph;
 
-core::PoseKey key(int robot, int keyframe) {
-  return {core::RobotId(static_cast<std::uint8_t>(robot)),
-          core::KeyframeId(static_cast<std::uint64_t>(keyframe))};
-}
+using dcl::test::key;
 
 Eigen::Isometry3d pose(double x, double y, double z, double yaw) {
   Eigen::Isometry3d T = core::makePose2d(x, y, yaw);
