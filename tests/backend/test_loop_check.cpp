@@ -14,6 +14,7 @@
 #include <dcl/io/multi_robot_graph.hpp>
 
 #include "../common/keys.hpp"
+#include "loop_ids.hpp"
 
 namespace dcl::backend {
 namespace {
@@ -90,11 +91,7 @@ struct ThreeRobots {
   }
 };
 
-std::set<LoopId> loopIdsOf(const std::vector<Factor>& loops) {
-  std::set<LoopId> ids;
-  for (const Factor& f : loops) ids.insert(loopId(f));
-  return ids;
-}
+using dcl::test::loopIdsOf;
 
 std::vector<Factor> interRobot(const PoseGraph& graph) {
   std::vector<Factor> loops;

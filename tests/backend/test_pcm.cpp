@@ -15,6 +15,7 @@
 #include <dcl/io/multi_robot_graph.hpp>
 
 #include "../common/keys.hpp"
+#include "loop_ids.hpp"
 
 namespace dcl::backend {
 namespace {
@@ -87,11 +88,7 @@ struct TwoRobots {
   }
 };
 
-std::set<LoopId> idsOf(const std::vector<Factor>& loops) {
-  std::set<LoopId> ids;
-  for (const Factor& f : loops) ids.insert(loopId(f));
-  return ids;
-}
+using dcl::test::loopIdsOf;
 
 /// Composes factors i -> i+1 -> ... -> j directly, as the definition of the
 /// relative pose along a chain and its first-order covariance.
@@ -274,8 +271,8 @@ TEST(PairwiseConsistency, KeepsTheTrueLoopsAndRejectsTheWrongOnes) {
   for (const Factor& f : s.outliers) pcm.addLoop(f);
   const PcmDecision& d = pcm.decide();
   EXPECT_TRUE(d.exact);
-  EXPECT_EQ(idsOf(d.accepted), idsOf(s.loops));
-  EXPECT_EQ(idsOf(d.rejected), idsOf(s.outliers));
+  EXPECT_EQ(loopIdsOf(d.accepted), loopIdsOf(s.loops));
+  EXPECT_EQ(loopIdsOf(d.rejected), loopIdsOf(s.outliers));
   EXPECT_TRUE(d.unverified.empty());
   EXPECT_GE(d.consistent_pairs, s.loops.size() * (s.loops.size() - 1) / 2);
   EXPECT_FALSE(pcm.addLoop(invertFactor(s.loops.front())));  // the same loop, seen from b
@@ -291,15 +288,15 @@ TEST(PairwiseConsistency, AReplacedLoopIsCheckedAgainWithEveryOther) {
   PairwiseConsistency pcm(core::RobotId(0), core::RobotId(1));
   for (const Factor& f : s.odometry) pcm.addRobotFactor(f);
   for (const Factor& f : s.loops) pcm.addLoop(f);
-  const std::set<LoopId> all = idsOf(s.loops);
-  ASSERT_EQ(idsOf(pcm.decide().accepted), all);
+  const std::set<LoopId> all = loopIdsOf(s.loops);
+  ASSERT_EQ(loopIdsOf(pcm.decide().accepted), all);
 
   Factor wrong = s.loops[3];
   wrong.T_from_to =
       wrong.T_from_to * core::makePose(Eigen::Vector3d(4, -3, 0), Eigen::Matrix3d::Identity());
   EXPECT_TRUE(pcm.replaceLoop(wrong));
   const PcmDecision after_wrong = pcm.decide();
-  EXPECT_EQ(idsOf(after_wrong.rejected), std::set<LoopId>{loopId(wrong)});
+  EXPECT_EQ(loopIdsOf(after_wrong.rejected), std::set<LoopId>{loopId(wrong)});
   EXPECT_EQ(after_wrong.accepted.size(), s.loops.size() - 1);
   // The held copy is the new one, oriented from robot a.
   const std::vector<Factor> loops = pcm.loops();
@@ -312,7 +309,7 @@ TEST(PairwiseConsistency, AReplacedLoopIsCheckedAgainWithEveryOther) {
   // the decision is the one before.
   EXPECT_TRUE(pcm.replaceLoop(invertFactor(s.loops[3])));
   const PcmDecision& again = pcm.decide();
-  EXPECT_EQ(idsOf(again.accepted), all);
+  EXPECT_EQ(loopIdsOf(again.accepted), all);
   EXPECT_TRUE(again.rejected.empty());
 
   // Nothing held between those keyframes: ignored; not between the robots: refused.
@@ -352,7 +349,7 @@ TEST(PairwiseConsistency, HoldsBackALoneLoopUntilAnotherAgrees) {
   pcm.addLoop(s.loops[1]);
   const PcmDecision& two = pcm.decide();
   EXPECT_FALSE(two.too_few);
-  EXPECT_EQ(idsOf(two.accepted), idsOf({s.loops[0], s.loops[1]}));
+  EXPECT_EQ(loopIdsOf(two.accepted), loopIdsOf({s.loops[0], s.loops[1]}));
   PcmConfig published;
   published.min_loops = 1;
   PairwiseConsistency paper(core::RobotId(0), core::RobotId(1), published);
@@ -371,21 +368,21 @@ TEST(PairwiseConsistency, AWithdrawnLoopIsNeverKeptAndTheRestAreJudgedWithoutIt)
   for (const Factor& f : s.odometry) pcm.addRobotFactor(f);
   const std::vector<Factor> cluster = wrongCluster(s, 20, 3);
   for (const Factor& f : cluster) pcm.addLoop(f);
-  EXPECT_EQ(idsOf(pcm.decide().accepted), idsOf(cluster));
+  EXPECT_EQ(loopIdsOf(pcm.decide().accepted), loopIdsOf(cluster));
   for (const Factor& f : cluster) EXPECT_TRUE(pcm.withdraw(loopId(f)));
   EXPECT_FALSE(pcm.withdraw(loopId(cluster[0])));
   const PcmDecision& withdrawn = pcm.decide();
   EXPECT_TRUE(withdrawn.accepted.empty());
-  EXPECT_EQ(idsOf(withdrawn.withdrawn), idsOf(cluster));
+  EXPECT_EQ(loopIdsOf(withdrawn.withdrawn), loopIdsOf(cluster));
   // A loop withdrawn before it arrives stays out when it does.
   const std::vector<Factor> later = wrongCluster(s, 30, 2);
   EXPECT_TRUE(pcm.withdraw(loopId(later[0])));
   for (const Factor& f : later) pcm.addLoop(f);
   for (const Factor& f : s.loops) pcm.addLoop(f);
   const PcmDecision& kept = pcm.decide();
-  EXPECT_EQ(idsOf(kept.accepted), idsOf(s.loops));
+  EXPECT_EQ(loopIdsOf(kept.accepted), loopIdsOf(s.loops));
   EXPECT_EQ(kept.withdrawn.size(), 4U);
-  EXPECT_TRUE(idsOf(kept.rejected).contains(loopId(later[1])));
+  EXPECT_TRUE(loopIdsOf(kept.rejected).contains(loopId(later[1])));
 }
 
 // ---------------------------------------------------------------------------
