@@ -84,6 +84,7 @@ Robot runFrontEnd(const io::DatasetSpec& spec, std::size_t index,
   core::ProgressBar progress("front-end " + robot.name, frames, "frames");
   for (std::size_t i = 0; i < frames; ++i) {
     const core::PointCloud scan = scans->scan(i);
+    if (const auto up = scans->up(i)) odometry.observeUp(*up);
     const odometry::OdometryResult result = odometry.process(scans->stamp(i), scan);
     if (result.registered.empty()) {
       (void)mapper.process(result, scan);

@@ -150,6 +150,7 @@ FrameLog runFrames(const RobotData& data, odometry::Odometry& odometry,
   std::optional<core::KeyframeId> keyframe;
   for (std::size_t i = 0; i < frames; ++i) {
     const core::PointCloud scan = data.scans->scan(i);
+    if (const auto up = data.scans->up(i)) odometry.observeUp(*up);
     const auto start = Clock::now();
     const odometry::OdometryResult result = odometry.process(data.scans->stamp(i), scan);
     log.milliseconds.push_back(
@@ -341,6 +342,7 @@ void runBenchOdometry(const OdometryOptions& o, bool json, const AppConfig& conf
   core::ProgressBar progress("bench odometry", frames, "frames");
   for (std::size_t i = 0; i < frames; ++i) {
     const core::PointCloud scan = data.scans->scan(i);
+    if (const auto up = data.scans->up(i)) odometry.observeUp(*up);
     const auto start = Clock::now();
     const auto result = odometry.process(data.scans->stamp(i), scan);
     log.milliseconds.push_back(

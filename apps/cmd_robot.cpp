@@ -293,7 +293,7 @@ struct RobotPlayer {
 
   void feed() {
     max_lag = std::max(max_lag, look() - due(next));
-    node.addScan(scans->stamp(next), scans->scan(next));
+    node.addScan(scans->stamp(next), scans->scan(next), scans->up(next));
     ++next;
   }
 

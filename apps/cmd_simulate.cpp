@@ -51,6 +51,7 @@ struct SimulateOptions {
   bool no_motion_distortion = false;   ///< scans without motion distortion
   bool no_noise = false;               ///< scans without range noise and dropout
   bool perfect_lasers = false;         ///< every robot's lasers exactly on the published table
+  bool no_imu = false;                 ///< no IMU reading of up with the scans
   std::vector<double> odometry_drift;  ///< % and deg/m: a drifting external front-end per robot
   double traffic = 0.0;                ///< moving actors, times the world's own traffic
   bool force = false;                  ///< replace --out even when it holds other files
@@ -93,6 +94,8 @@ void printSummary(const sim::Preset& preset, const io::DatasetSpec& spec, const 
   fmt::print("dataset '{}' ({}): {} world, seed {}, {} at {:.2f} m\n", spec.name,
              preset.description, preset.world, preset.seed, spec.sensor, spec.mount_height);
   fmt::print("  lasers: {}\n", lasersOf(*spec.sim));
+  if (spec.sim->imu)
+    fmt::print("  imu: every scan with its reading of up (tilt error and noise)\n");
   if (spec.sim->traffic > 0.0)
     fmt::print("  traffic: {} times the {} world's own\n", spec.sim->traffic, preset.world);
   fmt::print("  {:<6} {:>8} {:>10} {:>10} {:>8}\n", "robot", "scans", "length m", "duration s",
@@ -170,7 +173,8 @@ void runSimulate(const SimulateOptions& o) {
                                               {.motion_distortion = !o.no_motion_distortion,
                                                .noise = !o.no_noise,
                                                .calibration_error = !o.perfect_lasers,
-                                               .traffic = o.traffic});
+                                               .traffic = o.traffic,
+                                               .imu = !o.no_imu});
   if (!o.odometry_drift.empty()) spec = addDriftingOdometry(out.path(), spec, o);
   printSummary(preset, spec, out.path(), out.out());
   if (format) exportScans(spec, out.path(), out.out(), *format);
@@ -327,6 +331,8 @@ void addSimulateCommand(CLI::App& app) {
   cmd->add_flag("--perfect-lasers", o->perfect_lasers,
                 "every robot's lasers exactly where the published beam table says (no "
                 "calibration error)");
+  cmd->add_flag("--no-imu", o->no_imu,
+                "no IMU reading of up with the scans (the KITTI presets have one): LiDAR only");
   cmd->add_option("--odometry-drift", o->odometry_drift,
                   "PERCENT,DEG_PER_M: also give each robot an external front-end, its ground truth "
                   "drifting by PERCENT % of the distance and DEG_PER_M deg per metre "

@@ -162,6 +162,7 @@ SimSpec readSim(MapReader sim) {
     out.calibration_error = sim.boolean("calibration_error", *n);
   }
   if (auto n = sim.optional("shared_unit")) out.shared_unit = sim.boolean("shared_unit", *n);
+  if (auto n = sim.optional("imu")) out.imu = sim.boolean("imu", *n);
   if (auto n = sim.optional("traffic")) {
     out.traffic = sim.number("traffic", *n);
     if (!(out.traffic >= 0.0 && out.traffic <= kMaxTraffic)) {
@@ -362,6 +363,7 @@ void writeSim(std::ostream& out, const SimSpec& sim) {
       << "  # with noise: each robot's lasers off the published table\n";
   out << "  shared_unit: " << (sim.shared_unit ? "true" : "false")
       << "  # with calibration_error: every robot carries the first robot's unit\n";
+  if (sim.imu) out << "  imu: true  # every scan comes with the robot's IMU reading of up\n";
   if (sim.traffic > 0.0) {
     out << "  traffic: " << fmt::format("{}", sim.traffic)
         << "  # moving actors, times the world's own traffic\n";

@@ -120,7 +120,15 @@ LidarOdometry::LidarOdometry(const OdometryConfig& config)
       map_(config.mapVoxelSize(), config.max_points_per_voxel),
       threshold_(config.threshold, config.max_range) {}
 
+void LidarOdometry::observeUp(const Eigen::Vector3d& up_sensor) {
+  const double norm = up_sensor.norm();
+  if (!config_.use_imu || !std::isfinite(norm) || norm < 1e-6)
+    return;  // a reading that says nothing
+  pending_up_ = up_sensor / norm;
+}
+
 OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan) {
+  const std::optional<Eigen::Vector3d> up = std::exchange(pending_up_, std::nullopt);
   if (auto problem = checkStamp(stamp)) return skipped(stamp, std::move(*problem));
   const CleanScan clean = cleanScan(scan, config_.min_range, config_.max_range);
   if (clean.cloud.size() < config_.min_points) {
@@ -154,7 +162,7 @@ OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan
   // 4. Update velocity and threshold, then the map.
   result.health.sharp_motion = frame_registration.twist.has_value();
   if (map_.empty() && t_mid != 0.0) first_sweep_ = FirstSweep{clean.cloud, t_mid};
-  commit(stamp, t_mid, registration, T_predicted, frame_registration.twist);
+  commit(stamp, t_mid, registration, T_predicted, frame_registration.twist, up);
   const std::vector<Eigen::Vector3d> deskewed = deskewedFrame(clean.cloud, t_mid);
   const std::vector<Eigen::Vector3d> frame =
       voxelDownsample(deskewed, 0.5 * config_.mapVoxelSize());
@@ -315,7 +323,8 @@ bool LidarOdometry::motionChanged(const RegistrationResult& rigid, double refere
 
 void LidarOdometry::commit(double stamp, double t_mid, const RegistrationResult& registration,
                            const Eigen::Isometry3d& T_predicted,
-                           const std::optional<core::Vector6d>& twist) {
+                           const std::optional<core::Vector6d>& twist,
+                           const std::optional<Eigen::Vector3d>& up) {
   const double reference_time = stamp + t_mid;
   const Eigen::Isometry3d& T_odom_reference = registration.T_target_source;
   const Eigen::Isometry3d T_last_current = T_odom_reference_.inverse() * T_odom_reference;
@@ -333,9 +342,31 @@ void LidarOdometry::commit(double stamp, double t_mid, const RegistrationResult&
   }
   T_odom_reference_ = T_odom_reference;
   if (first_sweep_ && last_reference_time_) redoFirstSweep();
+  // Levelled after the velocity is measured: registration's own motion stays
+  // its measure, and the next frame is predicted from the levelled pose.
+  if (up && !first_sweep_) level(*up, t_mid, reference_time);
   last_reference_time_ = reference_time;
   T_odom_sensor_ = T_odom_reference_ * core::expSE3(-t_mid * velocity_);
   last_stamp_ = stamp;
+}
+
+void LidarOdometry::level(const Eigen::Vector3d& up_stamp, double t_mid, double reference_time) {
+  // The reading is at the stamp; the pose at mid-sweep, t_mid later.
+  const Eigen::Matrix3d R_stamp_reference = core::expSE3(t_mid * velocity_).rotation();
+  const Eigen::Vector3d read =
+      T_odom_reference_.rotation() * (R_stamp_reference.transpose() * up_stamp);
+  if (!up_odom_) {
+    up_odom_ = read;
+    last_level_time_ = reference_time;
+    return;
+  }
+  const double dt = std::max(0.0, reference_time - last_level_time_);
+  last_level_time_ = reference_time;
+  const double share = 1.0 - std::exp(-dt / config_.imu_time_constant);
+  const Eigen::Quaterniond full = Eigen::Quaterniond::FromTwoVectors(read, *up_odom_);
+  const Eigen::Quaterniond turn = Eigen::Quaterniond::Identity().slerp(share, full);
+  T_odom_reference_.linear() =
+      (turn * Eigen::Quaterniond(T_odom_reference_.rotation())).normalized().toRotationMatrix();
 }
 
 void LidarOdometry::growMap(std::span<const Eigen::Vector3d> deskewed,

@@ -16,8 +16,10 @@
 namespace dcl::robot {
 using detail::odometryFactor;
 
-void RobotNode::Impl::addScan(double stamp, const core::PointCloud& scan) {
+void RobotNode::Impl::addScan(double stamp, const core::PointCloud& scan,
+                              const std::optional<Eigen::Vector3d>& up) {
   count("frames");
+  if (up) odometry->observeUp(*up);
   const odometry::OdometryResult result = odometry->process(stamp, scan);
   const odometry::MapperUpdate update =
       result.registered.empty() ? mapper.process(result, scan) : mapper.process(result);

@@ -112,8 +112,9 @@ core::RobotId RobotNode::id() const {
   return impl_->self;
 }
 
-void RobotNode::addScan(double stamp, const core::PointCloud& scan) {
-  impl_->addScan(stamp, scan);
+void RobotNode::addScan(double stamp, const core::PointCloud& scan,
+                        const std::optional<Eigen::Vector3d>& up) {
+  impl_->addScan(stamp, scan, up);
 }
 
 void RobotNode::tick(double now) {

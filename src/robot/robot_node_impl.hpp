@@ -183,7 +183,8 @@ struct RobotNode::Impl {
   void handle(const comm::Message& m);
 
   // keyframes.cpp: own scans and keyframes.
-  void addScan(double stamp, const core::PointCloud& scan);
+  void addScan(double stamp, const core::PointCloud& scan,
+               const std::optional<Eigen::Vector3d>& up);
   void onKeyframe(const core::Keyframe& keyframe);
   [[nodiscard]] place::KeyframePosition ownPosition() const;
 

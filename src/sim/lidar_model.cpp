@@ -25,15 +25,6 @@ constexpr double kRangeOffsetSigma = 0.02;
 /// places where the crossing preset's robots meet.
 constexpr double kKittiElevationBiasDeg = 0.205;
 
-/// A standard normal from `random` (Box-Muller on two uniforms in (0, 1]).
-double gaussian(detail::Rng& random) {
-  const auto open_unit = [&] {
-    return (static_cast<double>(random.next() >> 11) + 1.0) * 0x1.0p-53;
-  };
-  const double radius = std::sqrt(-2.0 * std::log(open_unit()));
-  return radius * std::cos(2.0 * M_PI * open_unit());
-}
-
 /// The imperfections of a Velodyne's returns, each brought within the band of
 /// the real KITTI 00 HDL-64E sweeps in the shared data (`dcl-slam bench
 /// sensor`, BENCHMARKS.md "Sensor against real scans"): range noise growing
@@ -145,12 +136,12 @@ BeamCalibration BeamCalibration::draw(const LidarModel& model, std::uint64_t see
   }
   detail::Rng random(seed);
   for (std::size_t ring = 0; ring < model.elevations_deg.size(); ++ring) {
-    unit.elevation_error_deg.push_back(model.elevation_error_sigma_deg * gaussian(random));
-    unit.range_offset.push_back(model.range_offset_sigma * gaussian(random));
+    unit.elevation_error_deg.push_back(model.elevation_error_sigma_deg * random.gaussian());
+    unit.range_offset.push_back(model.range_offset_sigma * random.gaussian());
   }
   // Drawn after the lasers', so that a unit's per-laser errors do not depend on it.
   unit.elevation_bias_deg =
-      model.elevation_bias_mean_deg + model.elevation_bias_sigma_deg * gaussian(random);
+      model.elevation_bias_mean_deg + model.elevation_bias_sigma_deg * random.gaussian();
   return unit;
 }
 

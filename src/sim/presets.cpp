@@ -23,6 +23,7 @@ struct Recipe {
   std::function<std::vector<Route>(const PresetOptions&, int robots)> routes;
   bool calibration_error = true;  ///< the robots' lasers off the published table
   bool shared_unit = false;       ///< one LiDAR unit for every robot (one car's drive split)
+  bool imu = false;               ///< every robot reads up from an IMU with each scan
 };
 
 std::vector<Route> kitti(const PresetOptions& options, const std::string& sequence) {
@@ -43,6 +44,9 @@ Recipe kittiRecipe(const std::string& sequence, int robots) {
                 [sequence](const PresetOptions& o, int) { return kitti(o, sequence); }};
   // One car drove the whole sequence: its parts carry that car's one HDL-64.
   recipe.shared_unit = true;
+  // KITTI's car carried an OXTS RT3003 GPS/IMU beside its LiDAR, and the
+  // paper's front-ends (LIO-SAM, FAST-LIO2) level their poses with an IMU.
+  recipe.imu = true;
   return recipe;
 }
 
@@ -145,6 +149,7 @@ Preset makePreset(const std::string& name, const PresetOptions& options) {
   preset.seed = options.seed;
   preset.calibration_error = recipe.calibration_error;
   preset.shared_unit = recipe.shared_unit;
+  preset.imu = recipe.imu;
   preset.routes = recipe.routes(options, robotCount(recipe, options.robots));
   return preset;
 }

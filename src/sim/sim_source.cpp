@@ -72,6 +72,12 @@ ScanOptions scanOptionsOf(const io::SimSpec& sim, const SimWorldOptions& options
       .motion_distortion = sim.motion_distortion, .noise = sim.noise, .parallel = options.parallel};
 }
 
+/// The IMU's seed beside the LiDAR's `seed` (a unit's or a scan's): its own
+/// numbers, so that the scans do not change with it.
+std::uint64_t imuSeed(std::uint64_t seed) {
+  return detail::splitmix(seed ^ 0x494d5500494d5500ULL);
+}
+
 }  // namespace
 
 World generateWorldOfKind(io::WorldKind kind, const WorldRequest& request) {
@@ -114,6 +120,9 @@ struct SimWorld::Impl {
   ScanSimulator simulator;
   /// Each robot's LiDAR (the first robot's for all when shared); perfect ones without noise.
   std::vector<BeamCalibration> units;
+  ImuModel imu;
+  /// Each robot's IMU tilt (the first robot's for all when shared); empty without an IMU.
+  std::vector<Eigen::Vector2d> imu_tilts;
 
   Impl(const io::DatasetSpec& s, std::vector<core::Trajectory> gt, const SimWorldOptions& options)
       : spec(s),
@@ -126,6 +135,7 @@ struct SimWorld::Impl {
       units.push_back(s.sim->noise && s.sim->calibration_error
                           ? BeamCalibration::draw(simulator.model(), unitSeed(s.sim->seed, unit))
                           : BeamCalibration{});
+      if (s.sim->imu) imu_tilts.push_back(drawImuTilt(imu, imuSeed(unitSeed(s.sim->seed, unit))));
     }
   }
 };
@@ -146,6 +156,17 @@ core::PointCloud SimWorld::scan(std::size_t robot, std::size_t index) const {
   }
   return impl_->simulator.scan(gt, gt.stamp(index), scanSeed(impl_->spec.sim->seed, robot, index),
                                impl_->units[robot]);
+}
+
+std::optional<Eigen::Vector3d> SimWorld::up(std::size_t robot, std::size_t index) const {
+  const core::Trajectory& gt = groundTruth(robot);
+  if (index >= gt.size()) {
+    throw core::Error(fmt::format("robot '{}': no IMU reading {} (it has {})",
+                                  impl_->spec.robots[robot].name, index, gt.size()));
+  }
+  if (impl_->imu_tilts.empty()) return std::nullopt;
+  return readUp(impl_->imu, gt.pose(index).rotation(), impl_->imu_tilts[robot],
+                imuSeed(scanSeed(impl_->spec.sim->seed, robot, index)));
 }
 
 std::size_t SimWorld::robots() const {
@@ -193,6 +214,10 @@ double SimScanSource::stamp(std::size_t i) const {
 
 core::PointCloud SimScanSource::scan(std::size_t i) const {
   return world_->scan(robot_, i);
+}
+
+std::optional<Eigen::Vector3d> SimScanSource::up(std::size_t i) const {
+  return world_->up(robot_, i);
 }
 
 std::string SimScanSource::describe() const {
@@ -244,7 +269,8 @@ io::DatasetSpec writeSimDataset(const std::string& folder, const Preset& preset,
                          .noise = options.noise,
                          .calibration_error = options.calibration_error && preset.calibration_error,
                          .shared_unit = preset.shared_unit,
-                         .traffic = options.traffic};
+                         .traffic = options.traffic,
+                         .imu = options.imu && preset.imu};
   for (const Route& route : preset.routes) {
     const std::string gt = "ground_truth/" + route.name + ".tum";
     io::writeTumPoses((fs::path(folder) / gt).string(), route.T_world_sensor);

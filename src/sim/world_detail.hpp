@@ -6,6 +6,7 @@
 
 #include <Eigen/Core>
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <span>
@@ -44,6 +45,12 @@ class Rng {
   int integer(int lo, int hi);
   /// True with probability p.
   bool chance(double p) { return uniform() < p; }
+  /// A standard normal (Box-Muller on two uniforms in (0, 1]).
+  double gaussian() {
+    const auto open_unit = [&] { return (static_cast<double>(next() >> 11) + 1.0) * 0x1.0p-53; };
+    const double radius = std::sqrt(-2.0 * std::log(open_unit()));
+    return radius * std::cos(2.0 * M_PI * open_unit());
+  }
 
  private:
   std::uint64_t state_;

@@ -86,7 +86,7 @@ struct Member {
   void step(double time) {
     if (left(time)) return;
     while (next < frames && swarmTime(next) <= time) {
-      node->addScan(spec.scans->stamp(next), spec.scans->scan(next));
+      node->addScan(spec.scans->stamp(next), spec.scans->scan(next), spec.scans->up(next));
       ++next;
     }
     node->tick(time);

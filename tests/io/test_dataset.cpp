@@ -29,7 +29,8 @@ DatasetSpec mixedSpec() {
                      .noise = true,
                      .calibration_error = false,
                      .shared_unit = true,
-                     .traffic = 1.5};
+                     .traffic = 1.5,
+                     .imu = true};
   RobotSpec a{.name = "a", .scans = {}, .ground_truth = "a/gt.tum", .start_time = 0.0};
   RobotSpec b{
       .name = "b",
@@ -91,6 +92,7 @@ TEST(Dataset, RoundTripKeepsEveryField) {
   EXPECT_FALSE(back.sim->calibration_error);
   EXPECT_TRUE(back.sim->shared_unit);
   EXPECT_EQ(back.sim->traffic, 1.5);
+  EXPECT_TRUE(back.sim->imu);
   ASSERT_EQ(back.robots.size(), 4u);
   EXPECT_EQ(back.robots[0].scans.type, ScanSourceType::sim);
   EXPECT_EQ(back.robots[1].scans.type, ScanSourceType::kitti);
@@ -270,6 +272,9 @@ TEST(Dataset, RejectsBrokenFilesNamingLineAndKey) {
       {"traffic too dense",
        edited("robots:\n", "sim:\n  world: city\n  seed: 1\n  traffic: 1e9\nrobots:\n"),
        {":9:", "field 'sim.traffic'", "outside [0, 10]"}},
+      {"imu not a boolean",
+       edited("robots:\n", "sim:\n  world: city\n  seed: 1\n  imu: sometimes\nrobots:\n"),
+       {":9:", "field 'sim.imu'"}},
       {"sim seed",
        edited("robots:\n", "sim:\n  world: city\n  seed: -1\nrobots:\n"),
        {":8:", "field 'sim.seed'", "integer"}},

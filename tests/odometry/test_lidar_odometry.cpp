@@ -11,6 +11,7 @@
 #include <tbb/global_control.h>
 #include <unistd.h>
 
+#include <dcl/core/se3.hpp>
 #include <dcl/core/trajectory.hpp>
 #include <dcl/io/pose_file.hpp>
 #include <dcl/odometry/lidar_odometry.hpp>
@@ -266,6 +267,80 @@ INSTANTIATE_TEST_SUITE_P(Perturbed, SimulatedKittiTurn,
                            return info.param.name;
                          });
 
+/// One world in which KITTI's car drives with its IMU: a seed and a thread count.
+struct LevelVariant {
+  std::string name;
+  std::uint64_t seed = 1;   ///< the simulated world (city, traffic, LiDAR and IMU units)
+  std::size_t threads = 2;  ///< the odometry's TBB threads
+};
+
+void PrintTo(const LevelVariant& variant, std::ostream* os) {
+  *os << variant.name;
+}
+
+class SimulatedKittiLevel : public ::testing::TestWithParam<LevelVariant> {};
+
+/// The largest angle (deg) between the estimated and the true up over the
+/// first `frames` frames of robot 0 of `world`, the odometry levelled with
+/// the robot's IMU readings.
+double largestLean(const sim::SimWorld& world, std::size_t frames) {
+  LidarOdometry odometry;
+  const core::Trajectory& truth = world.groundTruth(0);
+  double largest = 0.0;
+  for (std::size_t i = 0; i < frames; ++i) {
+    const std::optional<Eigen::Vector3d> up = world.up(0, i);
+    EXPECT_TRUE(up.has_value());
+    if (up) odometry.observeUp(*up);
+    const auto result = odometry.process(truth.stamp(i), world.scan(0, i));
+    EXPECT_TRUE(result.health.accepted) << "frame " << i << ": " << result.health.problem;
+    const Eigen::Vector3d z = truth.pose(0).rotation() * result.T_odom_sensor.rotation().col(2);
+    const Eigen::Vector3d true_z = truth.pose(i).rotation().col(2);
+    largest = std::max(largest, core::rad2deg(std::atan2(z.cross(true_z).norm(), z.dot(true_z))));
+  }
+  return largest;
+}
+
+TEST_P(SimulatedKittiLevel, TheImuKeepsRollAndPitchFromDriftingAlongTheRoute) {
+  // KITTI 05's first 300 frames (robot a of kitti05-3, 210 m among traffic).
+  // Every laser of KITTI's HDL-64E points 0.2 deg high (the simulated unit
+  // too): the road ahead reads as a shallow cone, and registration alone
+  // lets roll and pitch drift, and the height with them (0.004 deg/m over
+  // whole sequences, BENCHMARKS.md): by 0.72-0.97 deg over these frames in
+  // seeds 1-3. The IMU's reading of up does not drift: levelled with it, the
+  // pose stays within its unit's tilt and noise (0.03 and 0.02 deg a axis)
+  // and the filter's lag, 0.14-0.16 deg at worst in the same worlds.
+  const LevelVariant& variant = GetParam();
+  const auto folder = std::filesystem::temp_directory_path() /
+                      ("dcl_odometry_level_" + std::to_string(::getpid()) + "_" + variant.name);
+  sim::PresetOptions options;
+  options.data_dir = test::dataDir();
+  options.seed = variant.seed;
+  sim::Preset preset = sim::makePreset("kitti05-3", options);
+  constexpr std::size_t kFrames = 300;
+  preset.routes.resize(1);
+  const core::Trajectory& full = preset.routes[0].T_world_sensor;
+  ASSERT_GT(full.size(), kFrames);
+  preset.routes[0].T_world_sensor =
+      core::Trajectory({full.stamps().begin(), full.stamps().begin() + kFrames},
+                       {full.poses().begin(), full.poses().begin() + kFrames});
+  const io::DatasetSpec spec = sim::writeSimDataset(folder.string(), preset, {.traffic = 1.0});
+  ASSERT_TRUE(spec.sim->imu);
+  const sim::SimWorld world(spec);
+  std::filesystem::remove_all(folder);
+  tbb::global_control threads(tbb::global_control::max_allowed_parallelism, variant.threads);
+  const double levelled = largestLean(world, kFrames);
+  std::printf("%s: largest error of up over %zu frames, levelled: %.4f deg\n", variant.name.c_str(),
+              kFrames, levelled);
+  EXPECT_LT(levelled, 0.25);
+}
+
+INSTANTIATE_TEST_SUITE_P(Perturbed, SimulatedKittiLevel,
+                         ::testing::Values(LevelVariant{"seed1", 1, 2},
+                                           LevelVariant{"seed2_one_thread", 2, 1}),
+                         [](const ::testing::TestParamInfo<LevelVariant>& info) {
+                           return info.param.name;
+                         });
+
 // --- Bad input --------------------------------------------------------------
 
 /// A room (floor, walls, ceiling, two pillars) seen from (x, 0, 0).
@@ -298,6 +373,78 @@ LidarOdometry warmedUp() {
   LidarOdometry odometry;
   for (int i = 0; i < 3; ++i) odometry.process(0.1 * i, roomScan(0.1 * i));
   return odometry;
+}
+
+// --- Levelling with the IMU -------------------------------------------------
+
+/// The angle (deg) by which the pose's z axis leans from the odometry frame's.
+double leanDeg(const Eigen::Isometry3d& pose) {
+  const Eigen::Vector3d z = pose.rotation().col(2);
+  return core::rad2deg(std::atan2(z.head<2>().norm(), z.z()));
+}
+
+/// The pose's heading (deg): its x axis about the odometry frame's z.
+double headingDeg(const Eigen::Isometry3d& pose) {
+  const Eigen::Matrix3d R = pose.rotation();
+  return core::rad2deg(std::atan2(R(1, 0), R(0, 0)));
+}
+
+/// The IMU's reading of up for a sensor rolled by `roll_deg` about its x axis.
+Eigen::Vector3d upWhenRolled(double roll_deg) {
+  return Eigen::AngleAxisd(core::deg2rad(roll_deg), Eigen::Vector3d::UnitX()).inverse() *
+         Eigen::Vector3d::UnitZ();
+}
+
+/// An odometry that saw the level room four times at 1 m/s along x, each
+/// scan with the IMU reading straight up.
+LidarOdometry levelInTheRoom(const OdometryConfig& config) {
+  LidarOdometry odometry(config);
+  for (int i = 0; i < 4; ++i) {
+    odometry.observeUp(Eigen::Vector3d::UnitZ());
+    EXPECT_TRUE(odometry.process(0.1 * i, roomScan(0.1 * i)).health.accepted);
+  }
+  return odometry;
+}
+
+TEST(LidarOdometryImu, TurnsRollAndPitchTowardTheReadingButNotTheHeading) {
+  OdometryConfig config;
+  config.imu_time_constant = 0.3;  // s
+  LidarOdometry odometry = levelInTheRoom(config);
+  EXPECT_LT(leanDeg(odometry.pose()), 0.01);
+  const double heading = headingDeg(odometry.pose());
+  // The room stays level, and registration says so; the IMU now reads a
+  // sensor rolled by 1 deg. After registration the pose turns toward the
+  // reading by the share 1 - exp(-0.1 s / 0.3 s) = 28 %, about a horizontal axis.
+  odometry.observeUp(upWhenRolled(1.0));
+  const auto result = odometry.process(0.4, roomScan(0.4));
+  ASSERT_TRUE(result.health.accepted);
+  EXPECT_NEAR(leanDeg(result.T_odom_sensor), 1.0 - std::exp(-0.1 / 0.3), 0.02);
+  EXPECT_NEAR(result.T_odom_sensor.rotation().col(2).y(), -std::sin(core::deg2rad(0.2835)), 2e-4);
+  EXPECT_NEAR(headingDeg(result.T_odom_sensor), heading, 1e-3);
+  EXPECT_NEAR(result.T_odom_sensor.translation().x(), 0.4, 0.01);  // turned about the sensor
+  // A scan without a reading keeps what registration finds: the room pulls it back level.
+  const auto next = odometry.process(0.5, roomScan(0.5));
+  EXPECT_LT(leanDeg(next.T_odom_sensor), 0.1);
+}
+
+TEST(LidarOdometryImu, IgnoresTheReadingsWhenToldToAndReadingsThatSayNothing) {
+  OdometryConfig lidar_only;
+  lidar_only.use_imu = false;
+  LidarOdometry odometry = levelInTheRoom(lidar_only);
+  odometry.observeUp(upWhenRolled(1.0));
+  EXPECT_LT(leanDeg(odometry.process(0.4, roomScan(0.4)).T_odom_sensor), 0.01);
+
+  LidarOdometry levelled = levelInTheRoom({});
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (const Eigen::Vector3d& nothing :
+       std::vector<Eigen::Vector3d>{Eigen::Vector3d(nan, 0.0, 1.0), Eigen::Vector3d::Zero(),
+                                    Eigen::Vector3d(1e-9, 0.0, 0.0)}) {
+    levelled.observeUp(nothing);
+  }
+  const auto result = levelled.process(0.4, roomScan(0.4));
+  EXPECT_TRUE(result.health.accepted);
+  EXPECT_TRUE(result.T_odom_sensor.matrix().allFinite());
+  EXPECT_LT(leanDeg(result.T_odom_sensor), 0.01);
 }
 
 TEST(LidarOdometryInput, TracksASimpleRoom) {

@@ -3,9 +3,12 @@
 // one per ground-truth pose, lining up with the world at their ground truth.
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <memory>
+#include <optional>
 #include <thread>
 
 #include <gtest/gtest.h>
@@ -244,6 +247,45 @@ TEST_F(SimSourceTest, RobotsCarryTheirOwnUnitOrShareTheFirstRobots) {
   // Without calibration error there is nothing to share: perfect lasers.
   spec.sim->calibration_error = false;
   EXPECT_TRUE(SimWorld(spec).unit(1).empty());
+}
+
+TEST_F(SimSourceTest, AnImuReadsUpWithEveryScanAndLeavesTheScansAsTheyWere) {
+  io::DatasetSpec spec = write(test::tinyPreset());
+  ASSERT_FALSE(spec.sim->imu);  // the tiny preset has none
+  const SimWorld without(spec);
+  EXPECT_FALSE(without.up(0, 2).has_value());
+  EXPECT_FALSE(SimScanSource(std::make_shared<const SimWorld>(spec), 0).up(2).has_value());
+
+  spec.sim->imu = true;
+  const SimWorld with(spec);
+  EXPECT_TRUE(test::sameCloud(with.scan(1, 3), without.scan(1, 3)));  // its own numbers
+  // Each reading is the truth turned by the unit's tilt and the reading's
+  // noise (0.03 and 0.02 deg a axis): well inside 0.2 deg. The mean error over
+  // a robot's readings is its unit's tilt, and each robot carries its own.
+  std::array<Eigen::Vector3d, 2> mean_error{Eigen::Vector3d::Zero(), Eigen::Vector3d::Zero()};
+  for (std::size_t r = 0; r < 2; ++r) {
+    const core::Trajectory& truth = with.groundTruth(r);
+    for (std::size_t i = 0; i < truth.size(); ++i) {
+      const std::optional<Eigen::Vector3d> up = with.up(r, i);
+      ASSERT_TRUE(up.has_value());
+      const Eigen::Vector3d true_up =
+          truth.pose(i).rotation().transpose() * Eigen::Vector3d::UnitZ();
+      EXPECT_LT(core::rad2deg(std::acos(std::min(1.0, up->dot(true_up)))), 0.2) << r << " " << i;
+      mean_error[r] += (*up - true_up) / static_cast<double>(truth.size());
+    }
+  }
+  EXPECT_GT((mean_error[0] - mean_error[1]).norm(), 1e-5);
+  EXPECT_EQ(*with.up(1, 3), *SimWorld(spec).up(1, 3));  // regenerated alike
+  EXPECT_THROW((void)with.up(0, 99), core::Error);
+
+  // One car's drive split into robots: one IMU, one tilt.
+  spec.sim->shared_unit = true;
+  const SimWorld shared(spec);
+  const Eigen::Vector3d true_up =
+      shared.groundTruth(1).pose(3).rotation().transpose() * Eigen::Vector3d::UnitZ();
+  const Eigen::Vector3d own_error = *with.up(1, 3) - true_up;
+  const Eigen::Vector3d shared_error = *shared.up(1, 3) - true_up;
+  EXPECT_GT((own_error - shared_error).norm(), 1e-7);
 }
 
 TEST_F(SimSourceTest, OpensFileRobotsThroughIoAndRefusesNonSimDatasets) {

@@ -108,6 +108,10 @@ struct SimSpec {
   /// sim/traffic.hpp): this times the world kind's traffic, 0 for none (the
   /// default), at most kMaxTraffic.
   double traffic = 0.0;
+  /// Each robot carries an IMU whose gravity reading (the direction up in the
+  /// sensor frame, with the unit's own tilt error and noise; sim::ImuModel)
+  /// comes with every scan; default off. The KITTI presets' car had one.
+  bool imu = false;
 };
 
 /// The densest traffic a dataset may ask for (ten times a world kind's own).

@@ -3,9 +3,11 @@
 /// A robot's scans by index, wherever they come from: a KITTI folder, a ROS1
 /// bag topic, or (in dcl::sim) the simulator regenerating them on demand.
 
+#include <Eigen/Core>
 #include <cstddef>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -28,6 +30,12 @@ class ScanSource {
   /// Scan `i`, points in the sensor frame at firing time. Throws core::Error past
   /// the end and core::FileError when the scan cannot be read.
   [[nodiscard]] virtual core::PointCloud scan(std::size_t i) const = 0;
+
+  /// The robot's IMU reading of up (against gravity) at scan `i`'s stamp: a
+  /// unit vector in the sensor frame. None (the default) when the source has no IMU.
+  [[nodiscard]] virtual std::optional<Eigen::Vector3d> up(std::size_t /*i*/) const {
+    return std::nullopt;
+  }
 
   /// What the scans are, for messages ("kitti folder a/velodyne", ...).
   [[nodiscard]] virtual std::string describe() const = 0;

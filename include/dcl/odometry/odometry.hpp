@@ -50,6 +50,11 @@ class Odometry {
   /// reported with health.accepted = false and the pose predicted or held.
   virtual OdometryResult process(double stamp, const core::PointCloud& scan) = 0;
 
+  /// The robot's IMU reading of up (against gravity; a unit vector in the
+  /// sensor frame) at the stamp of the scan processed next. A front-end that
+  /// levels its poses with it keeps it for that scan; the default ignores it.
+  virtual void observeUp(const Eigen::Vector3d& /*up_sensor*/) {}
+
   /// The latest pose, T_odom_sensor.
   [[nodiscard]] virtual Eigen::Isometry3d pose() const = 0;
 

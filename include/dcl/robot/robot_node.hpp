@@ -182,8 +182,11 @@ class RobotNode {
 
   [[nodiscard]] core::RobotId id() const;
 
-  /// A scan taken at `stamp` (s, the robot's clock), through the front-end.
-  void addScan(double stamp, const core::PointCloud& scan);
+  /// A scan taken at `stamp` (s, the robot's clock), through the front-end,
+  /// with the robot's IMU reading of up then when it has one
+  /// (odometry::Odometry::observeUp).
+  void addScan(double stamp, const core::PointCloud& scan,
+               const std::optional<Eigen::Vector3d>& up = std::nullopt);
 
   /// Handles what arrived and runs the timers at `now` (s, non-decreasing).
   void tick(double now);

@@ -24,6 +24,9 @@ struct Preset {
   /// Every robot carries one LiDAR unit: a single car's drive split into
   /// robots, as the paper splits the KITTI sequences.
   bool shared_unit = false;
+  /// Every robot carries an IMU that reads the direction up with each scan
+  /// (io::SimSpec::imu), as KITTI's car carried its GPS/IMU.
+  bool imu = false;
 };
 
 /// What the user may change about a preset.

@@ -6,6 +6,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -13,6 +14,7 @@
 #include <dcl/core/trajectory.hpp>
 #include <dcl/io/dataset.hpp>
 #include <dcl/io/scan_source.hpp>
+#include <dcl/sim/imu_model.hpp>
 #include <dcl/sim/presets.hpp>
 #include <dcl/sim/scan_simulator.hpp>
 #include <dcl/sim/traffic.hpp>
@@ -45,6 +47,11 @@ class SimWorld {
   /// stamp, by the robot's own unit (perfect without noise or calibration error).
   /// Throws core::Error for an index past the robot's ground truth.
   [[nodiscard]] core::PointCloud scan(std::size_t robot, std::size_t index) const;
+
+  /// Robot `robot`'s IMU reading of up at scan `index` (sim::readUp: its
+  /// unit's tilt, the first robot's when shared, and the reading's noise);
+  /// none when the dataset's robots carry no IMU. Throws like `scan`.
+  [[nodiscard]] std::optional<Eigen::Vector3d> up(std::size_t robot, std::size_t index) const;
 
   /// Number of robots.
   [[nodiscard]] std::size_t robots() const;
@@ -93,6 +100,8 @@ class SimScanSource final : public io::ScanSource {
   [[nodiscard]] double stamp(std::size_t i) const override;
   /// SimWorld::scan of this robot (x y z intensity time ring).
   [[nodiscard]] core::PointCloud scan(std::size_t i) const override;
+  /// SimWorld::up of this robot.
+  [[nodiscard]] std::optional<Eigen::Vector3d> up(std::size_t i) const override;
   /// "simulated robot 'NAME' of dataset 'NAME'".
   [[nodiscard]] std::string describe() const override;
 
@@ -119,6 +128,7 @@ struct SimDatasetOptions {
   bool calibration_error =
       true;  ///< with noise: each robot's own lasers' errors where the preset has them; default on
   double traffic = 0.0;  ///< moving actors, times the world kind's own traffic; default none
+  bool imu = true;  ///< each robot's IMU reading of up with its scans, where the preset has one
 };
 
 /// Writes a simulated dataset for `preset` into `folder`: dataset.yaml and one
