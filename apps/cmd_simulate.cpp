@@ -332,7 +332,7 @@ void addSimulateCommand(CLI::App& app) {
                 "every robot's lasers exactly where the published beam table says (no "
                 "calibration error)");
   cmd->add_flag("--no-imu", o->no_imu,
-                "no IMU reading of up with the scans (the KITTI presets have one): LiDAR only");
+                "no IMU reading of up with the scans: the robots LiDAR only");
   cmd->add_option("--odometry-drift", o->odometry_drift,
                   "PERCENT,DEG_PER_M: also give each robot an external front-end, its ground truth "
                   "drifting by PERCENT % of the distance and DEG_PER_M deg per metre "

@@ -169,7 +169,7 @@ OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan
   growMap(deskewed, frame);
   result.health.accepted = true;
   result.T_odom_sensor = T_odom_sensor_;
-  result.covariance = covarianceOf(registration);
+  result.covariance = covarianceOf(registration, up.has_value() && up_odom_.has_value());
   result.registered = toCloud(frame);
   result.registered.transform(core::expSE3(t_mid * velocity_));  // mid-sweep to stamp
   return result;
@@ -215,7 +215,8 @@ IcpConfig LidarOdometry::frameIcpConfig(double sigma) const {
   return icp;
 }
 
-core::Matrix6d LidarOdometry::covarianceOf(const RegistrationResult& registration) const {
+core::Matrix6d LidarOdometry::covarianceOf(const RegistrationResult& registration,
+                                           bool levelled) const {
   // Information scaled by the residual variance, bounded so that directions the
   // scene leaves open get max_sigma rather than infinity, plus a floor because
   // ICP's residuals are correlated and its raw covariance far too optimistic
@@ -226,7 +227,8 @@ core::Matrix6d LidarOdometry::covarianceOf(const RegistrationResult& registratio
       registration.information / (noise * noise) + max_information * core::Matrix6d::Identity();
   core::Matrix6d covariance = information.inverse();
   const double t2 = config_.min_translation_sigma * config_.min_translation_sigma;
-  const double r2 = config_.min_rotation_sigma * config_.min_rotation_sigma;
+  const double tilt_floor = levelled ? config_.imu_tilt_sigma : config_.min_rotation_sigma;
+  const double r2 = tilt_floor * tilt_floor;
   covariance.diagonal().head<3>().array() += t2;
   covariance.diagonal().segment<2>(3).array() += r2;
   covariance(5, 5) += config_.min_yaw_sigma * config_.min_yaw_sigma;

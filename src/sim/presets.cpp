@@ -23,7 +23,9 @@ struct Recipe {
   std::function<std::vector<Route>(const PresetOptions&, int robots)> routes;
   bool calibration_error = true;  ///< the robots' lasers off the published table
   bool shared_unit = false;       ///< one LiDAR unit for every robot (one car's drive split)
-  bool imu = false;               ///< every robot reads up from an IMU with each scan
+  /// Every robot reads up from an IMU with each scan, as the paper's robots
+  /// do (their front-ends, LIO-SAM and FAST-LIO2, need one).
+  bool imu = true;
 };
 
 std::vector<Route> kitti(const PresetOptions& options, const std::string& sequence) {
@@ -42,11 +44,9 @@ Recipe kittiRecipe(const std::string& sequence, int robots) {
                 robots,
                 true,
                 [sequence](const PresetOptions& o, int) { return kitti(o, sequence); }};
-  // One car drove the whole sequence: its parts carry that car's one HDL-64.
+  // One car drove the whole sequence: its parts carry that car's one HDL-64
+  // (and its one IMU, KITTI's OXTS RT3003).
   recipe.shared_unit = true;
-  // KITTI's car carried an OXTS RT3003 GPS/IMU beside its LiDAR, and the
-  // paper's front-ends (LIO-SAM, FAST-LIO2) level their poses with an IMU.
-  recipe.imu = true;
   return recipe;
 }
 
@@ -86,10 +86,16 @@ const std::vector<Recipe>& recipes() {
       // aliasing. With the lasers' calibration errors the odometry along its
       // bare walls drifts 4 % (0.7 % with perfect lasers), more than the
       // odometry covariance PCM checks loops against allows, and PCM keeps
-      // a consistent set of aliases instead of the true loops.
+      // a consistent set of aliases instead of the true loops. No IMU either:
+      // levelled by one, the robots' odometry is centimetres good here, and
+      // robots a and c of seed 1, running live, keep three wrong loops (their
+      // only link) where LiDAR only they keep eleven true ones: an open
+      // problem (BENCHMARKS.md, "Measured and left out"; `sim.imu: true` in
+      // the dataset reproduces it).
       {"aliasing-3", "3 robots along a corridor of identical blocks (perceptual aliasing), VLP-16",
        "aliasing", "vlp16", kUgvMountHeight, 3, false,
-       [](const PresetOptions& o, int n) { return aliasingRoutes(n, o.seed); }, false},
+       [](const PresetOptions& o, int n) { return aliasingRoutes(n, o.seed); }, false, false,
+       false},
       {"demo", "small and fast: 3 robots on ~180 m campus loops with overlaps, VLP-16", "campus",
        "vlp16", kUgvMountHeight, 3, false, demoRoutes},
       // Two robots that meet once: their streets cross, and nothing else of

@@ -422,6 +422,13 @@ TEST(LidarOdometryImu, TurnsRollAndPitchTowardTheReadingButNotTheHeading) {
   EXPECT_NEAR(result.T_odom_sensor.rotation().col(2).y(), -std::sin(core::deg2rad(0.2835)), 2e-4);
   EXPECT_NEAR(headingDeg(result.T_odom_sensor), heading, 1e-3);
   EXPECT_NEAR(result.T_odom_sensor.translation().x(), 0.4, 0.01);  // turned about the sensor
+  // A levelled frame's roll and pitch are as good as two readings, not as registration's floor.
+  const double imu_floor = config.imu_tilt_sigma * config.imu_tilt_sigma;
+  for (const int axis : {3, 4}) {
+    EXPECT_GE(result.covariance(axis, axis), imu_floor);
+    EXPECT_LT(result.covariance(axis, axis),
+              0.5 * config.min_rotation_sigma * config.min_rotation_sigma);
+  }
   // A scan without a reading keeps what registration finds: the room pulls it back level.
   const auto next = odometry.process(0.5, roomScan(0.5));
   EXPECT_LT(leanDeg(next.T_odom_sensor), 0.1);
@@ -432,7 +439,10 @@ TEST(LidarOdometryImu, IgnoresTheReadingsWhenToldToAndReadingsThatSayNothing) {
   lidar_only.use_imu = false;
   LidarOdometry odometry = levelInTheRoom(lidar_only);
   odometry.observeUp(upWhenRolled(1.0));
-  EXPECT_LT(leanDeg(odometry.process(0.4, roomScan(0.4)).T_odom_sensor), 0.01);
+  const auto unlevelled = odometry.process(0.4, roomScan(0.4));
+  EXPECT_LT(leanDeg(unlevelled.T_odom_sensor), 0.01);
+  EXPECT_GE(unlevelled.covariance(3, 3),
+            lidar_only.min_rotation_sigma * lidar_only.min_rotation_sigma);
 
   LidarOdometry levelled = levelInTheRoom({});
   const double nan = std::numeric_limits<double>::quiet_NaN();

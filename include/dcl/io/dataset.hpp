@@ -110,7 +110,7 @@ struct SimSpec {
   double traffic = 0.0;
   /// Each robot carries an IMU whose gravity reading (the direction up in the
   /// sensor frame, with the unit's own tilt error and noise; sim::ImuModel)
-  /// comes with every scan; default off. The KITTI presets' car had one.
+  /// comes with every scan; default off (every preset's robots have one).
   bool imu = false;
 };
 

@@ -72,6 +72,12 @@ struct OdometryConfig {
   /// a slower pull leaves them that far behind: at 0.3 s, 0.1-0.2 deg on the
   /// simulated KITTI routes (0.7 deg braking into a turn), at 0.05 s 0.01-0.09.
   double imu_time_constant = 0.05;
+  /// rad, the floor of a levelled frame's covariance about the sensor's x
+  /// and y axes, instead of min_rotation_sigma: two readings' noise (an
+  /// OXTS-class IMU's 0.02 deg each, sqrt(2) of it between two frames).
+  /// Registration's floor would let the pose graph tilt the levelled chain
+  /// by degrees over a few hundred frames, and bend its height to fit others'.
+  double imu_tilt_sigma = 5e-4;
   AdaptiveThresholdConfig threshold{};  ///< KISS-ICP's adaptive correspondence threshold
   IcpConfig icp{};  ///< registration (the odometry overrides its distance and kernel per frame)
 
@@ -126,6 +132,9 @@ struct OdometryConfig {
     v.field("imu_time_constant", imu_time_constant,
             "s, how quickly the levelled roll and pitch follow the IMU's readings")
         .positive();
+    v.field("imu_tilt_sigma", imu_tilt_sigma,
+            "rad, covariance floor about x and y of a frame levelled with the IMU")
+        .nonNegative();
     v.section("threshold", threshold, "adaptive correspondence threshold");
     v.section("icp", icp, "registration");
   }
@@ -171,8 +180,10 @@ class LidarOdometry final : public Odometry {
   /// The ICP settings for a frame registered with threshold `sigma` (m): 3 sigma
   /// gate, sigma / 3 kernel (KISS-ICP), sigma raised to the map's sampling spacing.
   [[nodiscard]] IcpConfig frameIcpConfig(double sigma) const;
-  /// The covariance of a frame's motion from its registration.
-  [[nodiscard]] core::Matrix6d covarianceOf(const RegistrationResult& registration) const;
+  /// The covariance of a frame's motion from its registration, with the
+  /// IMU's floor about x and y when the frame was `levelled`.
+  [[nodiscard]] core::Matrix6d covarianceOf(const RegistrationResult& registration,
+                                            bool levelled) const;
   /// Re-deskews the first sweep once a velocity is known and anchors the odometry frame at its
   /// stamp.
   void redoFirstSweep();

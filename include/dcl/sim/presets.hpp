@@ -25,7 +25,8 @@ struct Preset {
   /// robots, as the paper splits the KITTI sequences.
   bool shared_unit = false;
   /// Every robot carries an IMU that reads the direction up with each scan
-  /// (io::SimSpec::imu), as KITTI's car carried its GPS/IMU.
+  /// (io::SimSpec::imu), as KITTI's car carried its GPS/IMU and the paper's
+  /// robots their LiDAR-inertial front-ends' IMUs.
   bool imu = false;
 };
 
