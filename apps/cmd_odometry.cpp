@@ -340,9 +340,13 @@ void runBenchOdometry(const OdometryOptions& o, bool json, const AppConfig& conf
       o.max_frames > 0 ? std::min(o.max_frames, data.scans->size()) : data.scans->size();
   FrameLog log;
   core::ProgressBar progress("bench odometry", frames, "frames");
+  std::size_t levelled = 0;  // frames whose IMU reading the odometry used
   for (std::size_t i = 0; i < frames; ++i) {
     const core::PointCloud scan = data.scans->scan(i);
-    if (const auto up = data.scans->up(i)) odometry.observeUp(*up);
+    if (const auto up = data.scans->up(i)) {
+      odometry.observeUp(*up);
+      if (config.odometry.use_imu) ++levelled;
+    }
     const auto start = Clock::now();
     const auto result = odometry.process(data.scans->stamp(i), scan);
     log.milliseconds.push_back(
@@ -352,20 +356,20 @@ void runBenchOdometry(const OdometryOptions& o, bool json, const AppConfig& conf
     progress.update(i + 1);
   }
   progress.finish();
-  Json metrics = {{"dataset", data.spec.name},
-                  {"robot", data.spec.robots[data.index].name},
-                  {"sensor", data.spec.sensor},
-                  {"threads", threads},
-                  {"frames", framesJson(log)}};
+  Json metrics = {{"dataset", data.spec.name},     {"robot", data.spec.robots[data.index].name},
+                  {"sensor", data.spec.sensor},    {"threads", threads},
+                  {"imu_readings_used", levelled}, {"frames", framesJson(log)}};
   if (data.ground_truth) metrics["accuracy"] = accuracyJson(log.poses, *data.ground_truth);
   if (json) return fmt::print("{}\n", metrics.dump(2));
   const Json& f = metrics["frames"];
   fmt::print(
       "bench odometry '{}' robot {} ({}), {} threads: {} frames, {:.2f} ms a frame "
-      "(median {:.2f}, max {:.2f}), {:.0f} Hz\n",
+      "(median {:.2f}, max {:.2f}), {:.0f} Hz, {}\n",
       data.spec.name, data.spec.robots[data.index].name, data.spec.sensor, threads, frames,
       f["ms_per_frame"]["mean"].get<double>(), f["ms_per_frame"]["median"].get<double>(),
-      f["ms_per_frame"]["max"].get<double>(), f["frames_per_second"].get<double>());
+      f["ms_per_frame"]["max"].get<double>(), f["frames_per_second"].get<double>(),
+      levelled > 0 ? fmt::format("levelled with the IMU at {} frames", levelled)
+                   : std::string("LiDAR only"));
   if (metrics.contains("accuracy") && metrics["accuracy"].contains("kitti_translation_percent")) {
     fmt::print("  drift: KITTI {:.3f} % {:.5f} deg/m, ATE {:.3f} m\n",
                metrics["accuracy"]["kitti_translation_percent"].get<double>(),

@@ -555,6 +555,20 @@ class Odometry(DemoDataset):
             self.assertTrue(os.path.exists(os.path.join(out, name)), name)
         self.assertIn("keyframes", stdout)
 
+    def test_bench_odometry_says_whether_the_imu_levelled_it(self):
+        # The demo's robots read up from their IMU with every scan.
+        args = ("bench", "odometry", "--dataset", self.dataset, "--robot", "a",
+                "--max-frames", "30")
+        _, stdout, _ = run(*args, "--json")
+        self.assertEqual(json.loads(stdout)["imu_readings_used"], 30)
+        config = os.path.join(self.tmp.name, "lidar_only.yaml")
+        with open(config, "w") as f:
+            f.write("odometry: {use_imu: false}\n")
+        _, stdout, _ = run("--config", config, *args)
+        self.assertIn("LiDAR only", stdout)
+        _, stdout, _ = run(*args)
+        self.assertIn("levelled with the IMU at 30 frames", stdout)
+
     def test_external_odometry_replays_a_pose_file(self):
         gt = os.path.join(self.dataset, "ground_truth", "b.tum")
         _, _, metrics = self.run_odometry("external", "--external", gt)
