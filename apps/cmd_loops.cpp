@@ -150,12 +150,24 @@ std::vector<Candidate> search(const std::vector<Robot>& robots, std::size_t quer
     };
   };
   for (std::size_t i = 0; i < q.keyframes.size(); ++i) {
-    // What the querying robot sends with its descriptor: how closely its own
-    // route repeated the place before (RobotNode does the same).
-    const std::optional<float> look_alike = q.index->lookAlikeDistance(
-        *q.descriptions[i], q.keyframes[i].T_odom_keyframe.translation(), positionOn(q), i);
-    const place::DistinctMatch found =
+    // How closely each robot's own route repeats the place, over the whole
+    // route (RobotNode judges a loop again whenever either robot passes a
+    // place like it, before or after the loop was found).
+    const std::optional<float> look_alike =
+        q.index->lookAlikeDistance(*q.descriptions[i], q.keyframes[i].T_odom_keyframe.translation(),
+                                   positionOn(q), q.keyframes.size());
+    place::DistinctMatch found =
         v.index->queryDistinct(*q.descriptions[i], positionOn(v), look_alike);
+    if (found.best) {
+      const auto m = static_cast<std::size_t>(found.best->slot);
+      const std::optional<float> repeat = v.index->lookAlikeDistance(
+          *v.descriptions[m], v.keyframes[m].T_odom_keyframe.translation(), positionOn(v),
+          v.keyframes.size());
+      if (repeat && !(found.best->match.distance < v.index->config().distinct_ratio * *repeat)) {
+        found.refused = found.best;
+        found.best.reset();
+      }
+    }
     if (found.refused) {
       ++refused.count;
       const Eigen::Isometry3d& T_match = v.T_world_keyframe[found.refused->slot];

@@ -2,6 +2,7 @@
 // mapper; each new keyframe described, indexed and sent to the neighbours
 // with the odometry step that led to it (stage 1).
 
+#include <algorithm>
 #include <memory>
 #include <optional>
 #include <utility>
@@ -35,6 +36,9 @@ void RobotNode::Impl::onKeyframe(const core::Keyframe& keyframe) {
   const auto alikes = index.lookAlikes(*description, keyframe.T_odom_keyframe.translation(),
                                        ownPosition(), index.size());
   index.add(keyframe.id, description);
+  own_alike.push_back(alikes.empty() ? 1.0F : alikes.front().second);
+  for (const auto& [earlier, distance] : alikes)
+    own_alike[earlier.value()] = std::min(own_alike[earlier.value()], distance);
   comm::DescriptorMessage m{keyframe.id,  keyframe.stamp, place::encodeIris(*description),
                             std::nullopt, std::nullopt,   {}};
   if (!alikes.empty()) m.look_alike = alikes.front().second;
@@ -48,8 +52,7 @@ void RobotNode::Impl::onKeyframe(const core::Keyframe& keyframe) {
   // PCM checks the own chain as the neighbours read it (both sides decide alike).
   m = std::get<comm::DescriptorMessage>(comm::asDelivered(m));
   for (auto& [robot, n] : neighbours)
-    for (const comm::Resemblance& r : m.resembles)
-      judgeOwnRepeat(robot, n, r.keyframe, *description);
+    for (const comm::Resemblance& r : m.resembles) judgeOwnRepeat(robot, n, r, *description);
   if (m.odometry) {
     const backend::Factor step = odometryFactor(self, keyframe.id, *m.odometry);
     own_chain.push_back(step);

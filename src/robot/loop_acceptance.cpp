@@ -2,6 +2,7 @@
 // PCM; loops are withdrawn again at places a robot passes twice, and when
 // both robots of a pair see that a round's solution cannot explain them.
 
+#include <algorithm>
 #include <cstddef>
 #include <optional>
 #include <vector>
@@ -77,39 +78,49 @@ void RobotNode::Impl::recountPcm() {
 // tells the other robot, which withdraws it too.
 
 /// The own new keyframe `later` resembles own keyframe `earlier`, far from it
-/// on the route: the loops to `robot` asked at `earlier` are judged again.
-void RobotNode::Impl::judgeOwnRepeat(core::RobotId robot, Neighbour& n, core::KeyframeId earlier,
+/// on the route: the loops to `robot` asked at `earlier` are judged again,
+/// against the closer of `later` to the neighbour's place and of `later` to
+/// `earlier` (a place that repeats on the own route is no place to tie two
+/// robots at, however the neighbour's scan fell).
+void RobotNode::Impl::judgeOwnRepeat(core::RobotId robot, Neighbour& n,
+                                     const comm::Resemblance& earlier,
                                      const place::PlaceDescriptor& later) {
-  for (auto it = n.asked.lower_bound({earlier, core::KeyframeId(0)});
-       it != n.asked.end() && it->first.first == earlier; ++it) {
+  for (auto it = n.asked.lower_bound({earlier.keyframe, core::KeyframeId(0)});
+       it != n.asked.end() && it->first.first == earlier.keyframe; ++it) {
     const auto theirs = n.asked_descriptors.find(it->first.second);
     if (theirs == n.asked_descriptors.end()) continue;
-    judgeRepeat(robot, n, it->first, it->second, descriptor->match(*theirs->second, later));
+    const double repeat = std::min(descriptor->match(*theirs->second, later).distance,
+                                   static_cast<double>(earlier.distance));
+    judgeRepeat(robot, n, it->first, it->second, repeat);
   }
 }
 
 /// Neighbour `robot`'s new keyframe (described by `later`) resembles its
 /// keyframe `earlier`, far from it on its route: the loops asked at
-/// `earlier` are judged again.
-void RobotNode::Impl::judgeTheirRepeat(core::RobotId robot, Neighbour& n, core::KeyframeId earlier,
+/// `earlier` are judged again, as judgeOwnRepeat does.
+void RobotNode::Impl::judgeTheirRepeat(core::RobotId robot, Neighbour& n,
+                                       const comm::Resemblance& earlier,
                                        const place::PlaceDescriptor& later) {
   for (const auto& [pair, distance] : n.asked) {
-    if (pair.second != earlier) continue;
+    if (pair.second != earlier.keyframe) continue;
     const place::PlaceDescriptor& own = index.description(pair.first.value());
-    judgeRepeat(robot, n, pair, distance, descriptor->match(later, own));
+    const double repeat =
+        std::min(descriptor->match(later, own).distance, static_cast<double>(earlier.distance));
+    judgeRepeat(robot, n, pair, distance, repeat);
   }
 }
 
 /// Withdraws the loop asked as `pair` (own, theirs) with match distance
-/// `distance` when a repeat of either place matches within
-/// PlaceIndexConfig::distinct_ratio of it (`repeat`), and tells `robot`.
+/// `distance` when a repeat of either place is within
+/// PlaceIndexConfig::distinct_ratio of it (`repeat`, a descriptor distance),
+/// and tells `robot`.
 void RobotNode::Impl::judgeRepeat(core::RobotId robot, Neighbour& n,
                                   const std::pair<core::KeyframeId, core::KeyframeId>& pair,
-                                  double distance, const place::Match& repeat) {
-  if (static_cast<double>(distance) < config.index.distinct_ratio * repeat.distance) {
+                                  double distance, double repeat) {
+  if (static_cast<double>(distance) < config.index.distinct_ratio * repeat) {
     spdlog::trace("robot {}: t {:.1f}: keeps the loop {}{} - {}{}: match {:.3f}, a repeat {:.3f}",
                   core::robotName(self), now, core::robotName(self), pair.first.value(),
-                  core::robotName(robot), pair.second.value(), distance, repeat.distance);
+                  core::robotName(robot), pair.second.value(), distance, repeat);
     return;
   }
   const core::PoseKey own{self, pair.first};
@@ -120,7 +131,7 @@ void RobotNode::Impl::judgeRepeat(core::RobotId robot, Neighbour& n,
   count("inter_loops_withdrawn_repeated");
   spdlog::debug("robot {}: t {:.1f}: withdraws the loop {}{} - {}{}: match {:.3f}, a repeat {:.3f}",
                 core::robotName(self), now, core::robotName(self), pair.first.value(),
-                core::robotName(robot), pair.second.value(), distance, repeat.distance);
+                core::robotName(robot), pair.second.value(), distance, repeat);
   decide(n);
   forgetFrameIfUnlinked();
 }

@@ -46,12 +46,18 @@ void RobotNode::Impl::onDescriptor(core::RobotId from, const comm::DescriptorMes
     count("descriptors_undecodable");
     return;
   }
-  for (const comm::Resemblance& r : d.resembles) judgeTheirRepeat(from, n, r.keyframe, *theirs);
+  for (const comm::Resemblance& r : d.resembles) judgeTheirRepeat(from, n, r, *theirs);
   const place::DistinctMatch found = index.queryDistinct(*theirs, ownPosition(), d.look_alike);
   if (found.refused) count("candidates_ambiguous");
   const std::optional<place::PlaceCandidate>& best = found.best;
   if (!best) return;
   const core::KeyframeId own = best->keyframe.keyframe;
+  // The own place repeats elsewhere on the own route about as closely as the
+  // match: in repeated structure the best of the repeats is chance (which of
+  // them the keyframes happened to fall on at the same point of the block),
+  // not the place.
+  if (!(best->match.distance < config.index.distinct_ratio * own_alike.at(own.value())))
+    return count("candidates_ambiguous");
   if (n.asked.contains({own, d.keyframe})) return;
   // Loops a few metres apart add little but their clouds and separators,
   // once the pair holds loops enough to be kept. Until then every match

@@ -136,6 +136,9 @@ struct RobotNode::Impl {
   place::PlaceIndex index;
   std::map<core::RobotId, Neighbour> neighbours;
   std::vector<backend::Factor> own_chain;  ///< odometry steps as the neighbours read them
+  /// Per own keyframe, the descriptor distance to the closest place like it
+  /// elsewhere on the own route, before or after it (1: none known yet).
+  std::vector<float> own_alike;
   std::map<std::string, double> counters;
   double now = 0.0;
   /// The keyframe count each robot heard announced last (heartbeats), and
@@ -210,13 +213,13 @@ struct RobotNode::Impl {
   void decide(Neighbour& n);
   void redecideIfRejecting(Neighbour& n);
   void recountPcm();
-  void judgeOwnRepeat(core::RobotId robot, Neighbour& n, core::KeyframeId earlier,
+  void judgeOwnRepeat(core::RobotId robot, Neighbour& n, const comm::Resemblance& earlier,
                       const place::PlaceDescriptor& later);
-  void judgeTheirRepeat(core::RobotId robot, Neighbour& n, core::KeyframeId earlier,
+  void judgeTheirRepeat(core::RobotId robot, Neighbour& n, const comm::Resemblance& earlier,
                         const place::PlaceDescriptor& later);
   void judgeRepeat(core::RobotId robot, Neighbour& n,
                    const std::pair<core::KeyframeId, core::KeyframeId>& pair, double distance,
-                   const place::Match& repeat);
+                   double repeat);
   void onRepeated(core::RobotId from, const comm::LoopMeasurement& m);
   void checkRoundLoops(const detail::PoseMap& own, const detail::PoseMap& members);
   void onUnexplained(core::RobotId from, const comm::LoopMeasurement& m);

@@ -86,16 +86,10 @@ const std::vector<Recipe>& recipes() {
       // aliasing. With the lasers' calibration errors the odometry along its
       // bare walls drifts 4 % (0.7 % with perfect lasers), more than the
       // odometry covariance PCM checks loops against allows, and PCM keeps
-      // a consistent set of aliases instead of the true loops. No IMU either:
-      // levelled by one, the robots' odometry is centimetres good here, and
-      // robots a and c of seed 1, running live, keep three wrong loops (their
-      // only link) where LiDAR only they keep eleven true ones: an open
-      // problem (BENCHMARKS.md, "Measured and left out"; `sim.imu: true` in
-      // the dataset reproduces it).
+      // a consistent set of aliases instead of the true loops.
       {"aliasing-3", "3 robots along a corridor of identical blocks (perceptual aliasing), VLP-16",
        "aliasing", "vlp16", kUgvMountHeight, 3, false,
-       [](const PresetOptions& o, int n) { return aliasingRoutes(n, o.seed); }, false, false,
-       false},
+       [](const PresetOptions& o, int n) { return aliasingRoutes(n, o.seed); }, false},
       {"demo", "small and fast: 3 robots on ~180 m campus loops with overlaps, VLP-16", "campus",
        "vlp16", kUgvMountHeight, 3, false, demoRoutes},
       // Two robots that meet once: their streets cross, and nothing else of

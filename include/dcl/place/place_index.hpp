@@ -48,6 +48,8 @@ struct PlaceIndexConfig {
   /// Repeated structure (identical blocks, a corridor) matches every repeat
   /// almost equally, and the loops it yields agree with each other whether
   /// right or wrong; a real place usually beats its look-alikes by a margin.
+  /// RobotNode applies the same ratio to each robot's own repeats of the
+  /// place (how closely its route passes a place like it elsewhere).
   /// 1: off (the paper).
   double distinct_ratio = 0.9;
   /// m, how far apart two stored keyframes must be to count as different places.
