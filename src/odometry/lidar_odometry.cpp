@@ -163,6 +163,14 @@ OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan
   result.health.sharp_motion = frame_registration.twist.has_value();
   if (map_.empty() && t_mid != 0.0) first_sweep_ = FirstSweep{clean.cloud, t_mid};
   commit(stamp, t_mid, registration, T_predicted, frame_registration.twist, up);
+  if (frame_registration.source_points > 0 && registration.inliers > 0) {
+    constexpr double kWeight = 0.1;  // about the last ten frames, as rmse_average_
+    const double share = static_cast<double>(registration.inliers) /
+                         static_cast<double>(frame_registration.source_points);
+    inlier_share_average_ = inlier_share_average_ > 0.0
+                                ? (1.0 - kWeight) * inlier_share_average_ + kWeight * share
+                                : share;
+  }
   const std::vector<Eigen::Vector3d> deskewed = deskewedFrame(clean.cloud, t_mid);
   const std::vector<Eigen::Vector3d> frame =
       voxelDownsample(deskewed, 0.5 * config_.mapVoxelSize());
@@ -269,8 +277,33 @@ RegistrationResult LidarOdometry::registerRigid(const FrameSource& source,
   // of one or two sparse sweeps its far pairs pull the pose centimetres off
   // (mostly in height), and that offset stays. Refine with the narrowest
   // gate the map's sampling allows, from where the wide pass ended.
-  if (!threshold_.learned() && rigid.inliers >= config_.icp.min_inliers)
-    rigid = registerScan(source.deskewed, map_, rigid.T_target_source, frameIcpConfig(0.0));
+  if (!threshold_.learned()) {
+    if (rigid.inliers >= config_.icp.min_inliers)
+      rigid = registerScan(source.deskewed, map_, rigid.T_target_source, frameIcpConfig(0.0));
+    return rigid;
+  }
+  // A turn the prediction missed (a robot that starts to spin, a car that
+  // swings into a corner after a long straight) moves the far points metres
+  // beyond a gate that steady motion shrank to decimetres: the fit keeps the
+  // near points only, turns part of the way, and the next prediction starts
+  // from there, behind again. When far fewer points pair than in the frames
+  // before, fit again from the prediction, coarse to fine, and keep what
+  // pairs more points.
+  const double share = static_cast<double>(rigid.inliers) /
+                       static_cast<double>(std::max<std::size_t>(source.deskewed.size(), 1));
+  if (inlier_share_average_ > 0.0 && share < kLostShareRatio * inlier_share_average_) {
+    // Coarse to fine: the wide gate from the prediction, then halved at each
+    // pass, each from where the last ended, down to the learned gate.
+    const double learned = threshold_.sigma();
+    RegistrationResult again = rigid;
+    again.T_target_source = T_predicted;
+    for (double sigma = config_.threshold.initial_threshold;;
+         sigma = std::max(0.5 * sigma, learned)) {
+      again = registerScan(source.deskewed, map_, again.T_target_source, frameIcpConfig(sigma));
+      if (again.inliers < config_.icp.min_inliers || sigma <= learned) break;
+    }
+    if (!again.degenerate && again.inliers > rigid.inliers) rigid = again;
+  }
   return rigid;
 }
 
@@ -278,7 +311,7 @@ LidarOdometry::FrameRegistration LidarOdometry::registerFrame(
     const core::PointCloud& cloud, double stamp, double t_mid,
     const Eigen::Isometry3d& T_predicted) const {
   const FrameSource source = sourceOf(cloud, t_mid);
-  FrameRegistration frame{registerRigid(source, T_predicted), std::nullopt};
+  FrameRegistration frame{registerRigid(source, T_predicted), std::nullopt, source.deskewed.size()};
   if (!motionChanged(frame.registration, stamp + t_mid, sweepDuration(cloud)) ||
       source.sweep.points.empty()) {
     return frame;
@@ -297,7 +330,7 @@ LidarOdometry::FrameRegistration LidarOdometry::registerFrame(
       sweep.registration.rmse >= frame.registration.rmse) {
     return frame;
   }
-  return {sweep.registration, sweep.velocity};
+  return {sweep.registration, sweep.velocity, source.deskewed.size()};
 }
 
 bool LidarOdometry::motionChanged(const RegistrationResult& rigid, double reference_time,

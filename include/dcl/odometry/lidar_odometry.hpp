@@ -207,6 +207,7 @@ class LidarOdometry final : public Odometry {
   struct FrameRegistration {
     RegistrationResult registration;
     std::optional<core::Vector6d> twist;
+    std::size_t source_points = 0;  ///< the deskewed, thinned source it registered
   };
   [[nodiscard]] FrameSource sourceOf(const core::PointCloud& cloud, double t_mid) const;
   /// The rigid registration of the deskewed source from `T_predicted`.
@@ -251,8 +252,13 @@ class LidarOdometry final : public Odometry {
   /// half a sweep of velocity error back into the pose and oscillates.
   Eigen::Isometry3d T_odom_reference_ = Eigen::Isometry3d::Identity();
   core::Vector6d velocity_ = core::Vector6d::Zero();
-  double rmse_average_ = 0.0;         ///< m, moving average of the accepted frames' residuals
-  std::optional<double> last_stamp_;  ///< s, of the last accepted frame
+  double rmse_average_ = 0.0;  ///< m, moving average of the accepted frames' residuals
+  /// Moving average of the accepted frames' inlier shares (inliers over source points).
+  double inlier_share_average_ = 0.0;
+  /// A frame whose inlier share falls below this times the average is fitted
+  /// again with the first, wide gate (registerRigid).
+  static constexpr double kLostShareRatio = 0.85;
+  std::optional<double> last_stamp_;           ///< s, of the last accepted frame
   std::optional<double> last_reference_time_;  ///< s, mid-sweep of the last accepted frame
   /// The first sweep (with per-point times), kept until the second frame gives a velocity.
   struct FirstSweep {
