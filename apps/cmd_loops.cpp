@@ -163,7 +163,7 @@ std::vector<Candidate> search(const std::vector<Robot>& robots, std::size_t quer
       const std::optional<float> repeat = v.index->lookAlikeDistance(
           *v.descriptions[m], v.keyframes[m].T_odom_keyframe.translation(), positionOn(v),
           v.keyframes.size());
-      if (repeat && !(found.best->match.distance < v.index->config().distinct_ratio * *repeat)) {
+      if (repeat && !v.index->config().beats(found.best->match.distance, *repeat)) {
         found.refused = found.best;
         found.best.reset();
       }

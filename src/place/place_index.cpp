@@ -92,7 +92,7 @@ DistinctMatch PlaceIndex::queryDistinct(const PlaceDescriptor& query,
   }
   const Eigen::Vector3d at = position(best.keyframe.keyframe);
   for (std::size_t i = 1; i < ranked.size(); ++i) {
-    if (!(best.match.distance >= config_.distinct_ratio * ranked[i].match.distance)) break;
+    if (config_.beats(best.match.distance, ranked[i].match.distance)) break;
     if ((position(ranked[i].keyframe.keyframe) - at).norm() >= config_.distinct_separation) {
       out.refused = best;
       return out;
@@ -106,8 +106,8 @@ DistinctMatch PlaceIndex::queryDistinct(const PlaceDescriptor& query,
                                         const KeyframePosition& position,
                                         std::optional<float> look_alike) const {
   DistinctMatch out = queryDistinct(query, position, QueryScope::kOtherRobot);
-  if (!out.best || !look_alike || config_.distinct_ratio >= 1.0) return out;
-  if (out.best->match.distance >= config_.distinct_ratio * *look_alike) {
+  if (!out.best || !look_alike) return out;
+  if (!config_.beats(out.best->match.distance, *look_alike)) {
     out.refused = out.best;
     out.best.reset();
   }

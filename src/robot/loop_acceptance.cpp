@@ -117,7 +117,7 @@ void RobotNode::Impl::judgeTheirRepeat(core::RobotId robot, Neighbour& n,
 void RobotNode::Impl::judgeRepeat(core::RobotId robot, Neighbour& n,
                                   const std::pair<core::KeyframeId, core::KeyframeId>& pair,
                                   double distance, double repeat) {
-  if (static_cast<double>(distance) < config.index.distinct_ratio * repeat) {
+  if (config.index.beats(distance, repeat)) {
     spdlog::trace("robot {}: t {:.1f}: keeps the loop {}{} - {}{}: match {:.3f}, a repeat {:.3f}",
                   core::robotName(self), now, core::robotName(self), pair.first.value(),
                   core::robotName(robot), pair.second.value(), distance, repeat);

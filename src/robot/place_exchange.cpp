@@ -56,7 +56,7 @@ void RobotNode::Impl::onDescriptor(core::RobotId from, const comm::DescriptorMes
   // match: in repeated structure the best of the repeats is chance (which of
   // them the keyframes happened to fall on at the same point of the block),
   // not the place.
-  if (!(best->match.distance < config.index.distinct_ratio * own_alike.at(own.value())))
+  if (!config.index.beats(best->match.distance, own_alike.at(own.value())))
     return count("candidates_ambiguous");
   if (n.asked.contains({own, d.keyframe})) return;
   // Loops a few metres apart add little but their clouds and separators,

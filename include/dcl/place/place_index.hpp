@@ -55,6 +55,12 @@ struct PlaceIndexConfig {
   /// m, how far apart two stored keyframes must be to count as different places.
   double distinct_separation = 20.0;
 
+  /// Whether a match at descriptor distance `match` clearly beats a look-alike
+  /// of its place at distance `repeat` (distinct_ratio; always when off).
+  [[nodiscard]] bool beats(double match, double repeat) const {
+    return distinct_ratio >= 1.0 || match < distinct_ratio * repeat;
+  }
+
   /// Lists the fields and their rules (core/config.hpp).
   template <class V>
   void visit(V& v) {
