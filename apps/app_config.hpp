@@ -138,8 +138,12 @@ struct RosSection {
   std::string points = "/points";  ///< sensor_msgs/PointCloud2 in
   std::string odometry_in{};       ///< nav_msgs/Odometry of an external front-end (empty: built-in)
   double odometry_wait = 0.5;      ///< s a scan waits for the external odometry to reach it
-  std::string map_frame = "map";   ///< the group's frame
-  std::string odom_frame = "{robot}/odom";           ///< the robot's odometry frame
+  std::string imu{};               ///< sensor_msgs/Imu in (empty: none)
+  std::vector<double> imu_rpy{0.0, 0.0,
+                              0.0};         ///< deg, the IMU's roll, pitch, yaw in the LiDAR frame
+  double imu_max_gap = 0.05;                ///< s from a scan's stamp to its IMU reading at most
+  std::string map_frame = "map";            ///< the group's frame
+  std::string odom_frame = "{robot}/odom";  ///< the robot's odometry frame
   std::string base_frame = "{robot}/base_link";      ///< the robot
   std::string sensor_frame = "{robot}/lidar";        ///< the LiDAR (clouds `play` publishes)
   std::string odometry_topic = "/{robot}/odometry";  ///< nav_msgs/Odometry out, each keyframe
@@ -175,6 +179,19 @@ struct RosSection {
     v.field("odometry_wait", odometry_wait,
             "s a scan waits for the external odometry to reach its stamp, then is dropped")
         .within(0.0, 60.0);
+    v.field("imu", imu,
+            "sensor_msgs/Imu topic of the robot's IMU (empty: none): the built-in odometry "
+            "levels roll and pitch with its orientation (odometry.use_imu)");
+    v.field("imu_rpy", imu_rpy,
+            "deg, the IMU frame's roll, pitch and yaw in the LiDAR frame (x, y, z axes, "
+            "fixed), as the calibration between the two gives it")
+        .rule(imu_rpy.size() == 3 && std::all_of(imu_rpy.begin(), imu_rpy.end(),
+                                                 [](double a) { return std::abs(a) <= 360.0; }),
+              "must be three angles in deg, each within [-360, 360]");
+    v.field("imu_max_gap", imu_max_gap,
+            "s between a scan's stamp and the IMU reading nearest it at most, and s a scan "
+            "waits for a reading at or after its stamp (else it goes unlevelled)")
+        .within(0.0, 1.0);
     v.field("map_frame", map_frame, "frame id of the group's map");
     v.field("odom_frame", odom_frame, "frame id of the robot's odometry");
     v.field("base_frame", base_frame, "frame id of the robot");

@@ -18,6 +18,7 @@
 #include <dcl/io/dataset.hpp>
 #include <dcl/io/point_cloud2.hpp>
 #include <dcl/ros/ros2_node.hpp>
+#include <dcl/sim/imu_model.hpp>
 #include <dcl/sim/sim_source.hpp>
 
 #include "commands.hpp"
@@ -32,6 +33,7 @@ struct PlayOptions {
   std::string robot;
   std::optional<std::string> points;        ///< default: ros.points
   std::string odometry;                     ///< also the ground truth as nav_msgs/Odometry here
+  std::string imu;                          ///< also the IMU's readings as sensor_msgs/Imu here
   std::optional<std::uint32_t> ros_domain;  ///< default: ros.domain
   std::optional<std::string> interface;     ///< default: ros.interface
   double rate = 1.0;                        ///< dataset seconds per wall second
@@ -60,6 +62,11 @@ void runPlay(const PlayOptions& o, const AppConfig& config) {
   const core::Trajectory truth =
       o.odometry.empty() ? core::Trajectory{} : io::readGroundTruth(spec, *index);
   if (!o.odometry.empty()) node.advertise<msg::Odometry>(odometry_topic, ros2::Qos::reliable);
+  // The IMU's reading of up with each scan, as an orientation (the simulated
+  // IMU sits at the LiDAR and reads roll and pitch to its model's accuracy).
+  const std::string imu_topic = named(o.imu, o.robot);
+  if (!o.imu.empty()) node.advertise<msg::Imu>(imu_topic, ros2::Qos::sensor_data);
+  const double tilt_sigma = sim::ImuModel{}.readingSigma();
   // Best effort: scans sent before anyone listens are gone.
   const double wait_until = unixNow() + o.wait;
   while (stopSignal() == 0 && node.matched(topic) == 0 && unixNow() < wait_until)
@@ -86,6 +93,10 @@ void runPlay(const PlayOptions& o, const AppConfig& config) {
         m.pose = *pose;
         node.publish(odometry_topic, m);
       }
+    }
+    if (!o.imu.empty()) {
+      if (const auto up = scans->up(i))
+        node.publish(imu_topic, msg::imuOfUp(*up, tilt_sigma * tilt_sigma, {stamp, frame}));
     }
     core::PointCloud scan = scans->scan(i);
     // Stamped with the wall clock when the scan is due, as a driver stamps it,
@@ -122,6 +133,10 @@ void addPlayCommand(CLI::App& app, const AppConfig& config) {
   cmd->add_option("--odometry", o->odometry,
                   "also publish the robot's ground truth on this topic (nav_msgs/Odometry, before "
                   "each scan), a perfect front-end for robot --ros2 --odometry");
+  cmd->add_option("--imu", o->imu,
+                  "also publish the robot's IMU readings of up on this topic (sensor_msgs/Imu, "
+                  "an orientation of that roll and pitch, before each scan), for robot --imu; "
+                  "none for a dataset simulated --no-imu");
   cmd->add_option("--ros-domain", o->ros_domain, "DDS domain, ROS_DOMAIN_ID (default: ros.domain)")
       ->check(CLI::Range(0, 232));
   cmd->add_option("--interface", o->interface,

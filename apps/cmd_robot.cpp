@@ -15,6 +15,7 @@
 #include <csignal>
 #include <cstdint>
 #include <cstdio>
+#include <deque>
 #include <functional>
 #include <limits>
 #include <map>
@@ -83,7 +84,8 @@ struct RobotOptions {
   std::optional<int> id;              ///< the robot's id in the swarm (0..254), live only
   std::optional<std::string> points;  ///< the cloud topic (default: ros.points)
   std::optional<std::string>
-      odometry_in;  ///< an external front-end's topic (default: ros.odometry_in)
+      odometry_in;                 ///< an external front-end's topic (default: ros.odometry_in)
+  std::optional<std::string> imu;  ///< sensor_msgs/Imu topic (default: ros.imu)
   std::optional<std::uint32_t> ros_domain;  ///< ROS 2; default: ros.domain
   std::optional<std::string> ros_master;    ///< ROS 1; default: ros.master_uri, ROS_MASTER_URI
   std::vector<std::string> frame_ids;       ///< map, odom, base, sensor; default: the ros section's
@@ -418,10 +420,18 @@ struct LiveRobot {
     double arrived = 0.0;
   };
   std::optional<Waiting> waiting;
-  std::size_t without_odometry = 0;   ///< scans the external odometry did not reach in time
-  std::size_t odometry_received = 0;  ///< external odometry messages
-  std::size_t odometry_refused = 0;   ///< of them, not after the last one, or not finite
-  std::size_t received = 0;           ///< clouds that arrived
+  /// The IMU's readings of up in the LiDAR frame (ros.imu), by stamp on the
+  /// node's clock, the last kImuWindow seconds of them.
+  static constexpr double kImuWindow = 2.0;
+  Eigen::Matrix3d R_lidar_imu;
+  std::deque<std::pair<double, Eigen::Vector3d>> imu_readings;
+  std::size_t imu_received = 0;             ///< IMU messages
+  std::size_t imu_without_orientation = 0;  ///< of them, no orientation to level with
+  std::size_t scans_without_imu = 0;        ///< scans with no IMU reading within ros.imu_max_gap
+  std::size_t without_odometry = 0;         ///< scans the external odometry did not reach in time
+  std::size_t odometry_received = 0;        ///< external odometry messages
+  std::size_t odometry_refused = 0;         ///< of them, not after the last one, or not finite
+  std::size_t received = 0;                 ///< clouds that arrived
   std::size_t dropped = 0;  ///< of them, replaced by a newer one before the front-end took them
   std::size_t refused = 0;  ///< of them, unreadable (no x, y, z; sizes that do not fit)
   std::string last_refusal;
@@ -440,7 +450,17 @@ struct LiveRobot {
         dds(core::RobotId(robot), o.dds),
         metered(dds, o.meter_interval),
         node(metered, robotConfig(app), incarnation, frontEnd(ros, app.external, external)),
-        joined_at(unixNow()) {}
+        joined_at(unixNow()),
+        R_lidar_imu(rotationOf(ros.imu_rpy)) {}
+
+  /// The rotation of fixed-axis roll, pitch, yaw (deg) about x, y, z.
+  static Eigen::Matrix3d rotationOf(const std::vector<double>& rpy_deg) {
+    const double k = M_PI / 180.0;
+    return (Eigen::AngleAxisd(k * rpy_deg.at(2), Eigen::Vector3d::UnitZ()) *
+            Eigen::AngleAxisd(k * rpy_deg.at(1), Eigen::Vector3d::UnitY()) *
+            Eigen::AngleAxisd(k * rpy_deg.at(0), Eigen::Vector3d::UnitX()))
+        .toRotationMatrix();
+  }
 
   /// `config` once every topic name is one the middleware takes (a bad name
   /// fails before the node joins).
@@ -448,7 +468,7 @@ struct LiveRobot {
   static Config checkedTopics(const RosSection& ros, Config config) {
     for (const std::string* topic :
          {&ros.points, &ros.odometry_topic, &ros.path_topic, &ros.map_topic, &ros.loops_topic,
-          &ros.odometry_in, &ros.whole_map_topic}) {
+          &ros.odometry_in, &ros.whole_map_topic, &ros.imu}) {
       if (!topic->empty()) Middleware::checkTopic(*topic);
     }
     return config;
@@ -468,6 +488,7 @@ struct LiveRobot {
   static RosSection resolved(RosSection s, const RobotOptions& o) {
     if (o.points) s.points = *o.points;
     if (o.odometry_in) s.odometry_in = *o.odometry_in;
+    if (o.imu) s.imu = *o.imu;
     if (o.ros_domain) s.domain = *o.ros_domain;
     if (o.ros_master) s.master_uri = *o.ros_master;
     if (o.frame_ids.size() == 4) {
@@ -478,8 +499,8 @@ struct LiveRobot {
     }
     if (s.interface.empty()) s.interface = o.dds.interface;  // one network for both, unless told
     for (std::string* name :
-         {&s.points, &s.odometry_in, &s.map_frame, &s.odom_frame, &s.base_frame, &s.odometry_topic,
-          &s.path_topic, &s.map_topic, &s.loops_topic, &s.whole_map_topic}) {
+         {&s.points, &s.odometry_in, &s.imu, &s.map_frame, &s.odom_frame, &s.base_frame,
+          &s.odometry_topic, &s.path_topic, &s.map_topic, &s.loops_topic, &s.whole_map_topic}) {
       *name = named(*name, o.robot);
     }
     return s;
@@ -511,6 +532,32 @@ struct LiveRobot {
     waiting = Waiting{nodeStamp(m.header.stamp), std::move(cloud), unixNow()};
   }
 
+  void onImu(msg::Imu&& m) {
+    ++imu_received;
+    const std::optional<Eigen::Vector3d> up = msg::upInLidar(m, R_lidar_imu);
+    if (!up) {
+      ++imu_without_orientation;
+      return;
+    }
+    const double stamp = nodeStamp(m.header.stamp);
+    imu_readings.emplace_back(stamp, *up);
+    const double newest = std::max(stamp, imu_readings.front().first);
+    while (!imu_readings.empty() && imu_readings.front().first < newest - kImuWindow)
+      imu_readings.pop_front();
+  }
+
+  /// The IMU's reading of up nearest `stamp`, within ros.imu_max_gap.
+  std::optional<Eigen::Vector3d> upAt(double stamp) const {
+    const std::pair<double, Eigen::Vector3d>* nearest = nullptr;
+    for (const auto& reading : imu_readings) {
+      if (nearest == nullptr || std::abs(reading.first - stamp) < std::abs(nearest->first - stamp))
+        nearest = &reading;
+    }
+    if (nearest == nullptr || std::abs(nearest->first - stamp) > ros.imu_max_gap)
+      return std::nullopt;
+    return nearest->second;
+  }
+
   void onOdometry(msg::Odometry&& m) {
     ++odometry_received;
     if (!external->append(nodeStamp(m.header.stamp), m.pose)) ++odometry_refused;
@@ -528,7 +575,17 @@ struct LiveRobot {
       }
       return;
     }
-    node.addScan(waiting->stamp, waiting->scan);
+    // Its IMU reading may still be on its way (another connection): the scan
+    // waits for a reading at or after its stamp, ros.imu_max_gap at most.
+    if (!ros.imu.empty() && (imu_readings.empty() || imu_readings.back().first < waiting->stamp) &&
+        unixNow() - waiting->arrived < ros.imu_max_gap)
+      return;
+    std::optional<Eigen::Vector3d> up;
+    if (!ros.imu.empty()) {
+      up = upAt(waiting->stamp);
+      if (!up) ++scans_without_imu;
+    }
+    node.addScan(waiting->stamp, waiting->scan, up);
     waiting.reset();
     ++frames;
   }
@@ -651,6 +708,11 @@ struct LiveRobot {
     std::size_t messages_refused = 0;
     for (const auto& [topic, refusals] : ros_node.refused()) messages_refused += refusals.first;
     r.counters["messages_refused"] = static_cast<double>(messages_refused);
+    if (!ros.imu.empty()) {
+      r.counters["imu_received"] = static_cast<double>(imu_received);
+      r.counters["imu_without_orientation"] = static_cast<double>(imu_without_orientation);
+      r.counters["scans_without_imu"] = static_cast<double>(scans_without_imu);
+    }
     if (external != nullptr) {
       r.counters["scans_without_odometry"] = static_cast<double>(without_odometry);
       r.counters["odometry_received"] = static_cast<double>(odometry_received);
@@ -669,6 +731,11 @@ struct LiveRobot {
       ros_node.template subscribe<msg::Odometry>(
           ros.odometry_in, Qos::sensor_data,
           [this](msg::Odometry&& m) { onOdometry(std::move(m)); }, 1000);
+    }
+    if (!ros.imu.empty()) {
+      // Deep enough for a 400 Hz IMU between two scans' work.
+      ros_node.template subscribe<msg::Imu>(
+          ros.imu, Qos::sensor_data, [this](msg::Imu&& m) { onImu(std::move(m)); }, 1000);
     }
     ros_node.template advertise<msg::Odometry>(ros.odometry_topic, Qos::reliable);
     ros_node.template advertise<msg::TFMessage>("/tf", Qos::reliable);
@@ -804,7 +871,8 @@ void runRobot(const RobotOptions& o, const AppConfig& config) {
   }
   if (o.dataset.empty())
     throw core::Error("robot: --dataset is required (or --ros2 / --ros1 for a live robot)");
-  if (o.id || o.points || o.ros_domain || o.odometry_in || o.ros_master || !o.frame_ids.empty())
+  if (o.id || o.points || o.ros_domain || o.odometry_in || o.imu || o.ros_master ||
+      !o.frame_ids.empty())
     throw core::Error(
         "robot: --id, --points, --odometry, --ros-domain, --ros-master and --frame-ids are for a "
         "live robot (--ros2, --ros1)");
@@ -893,6 +961,9 @@ void addRobotCommand(CLI::App& app, const AppConfig& config) {
   cmd->add_option("--odometry", o->odometry_in,
                   "live: nav_msgs/Odometry topic of the robot's own front-end, used instead of the "
                   "built-in odometry (default: ros.odometry_in)");
+  cmd->add_option("--imu", o->imu,
+                  "live: sensor_msgs/Imu topic of the robot's IMU, its orientation levelling the "
+                  "built-in odometry's roll and pitch (default: ros.imu, none)");
   cmd->add_option("--ros-domain", o->ros_domain,
                   "live: DDS domain of the ROS 2 topics, ROS_DOMAIN_ID (default: ros.domain)")
       ->check(CLI::Range(0, 232));

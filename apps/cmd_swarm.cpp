@@ -268,27 +268,36 @@ std::string pointsTopic(const std::string& robot) {
   return "/" + robot + "/points";
 }
 
-/// `exe ... robot --ros2`: a live robot reading its scans from its player.
+/// A live robot's IMU, when its dataset's robots carry one.
+std::string imuTopic(const std::string& robot) {
+  return "/" + robot + "/imu";
+}
+
+/// `exe ... robot --ros2`: a live robot reading its scans (and its IMU, `imu`) from its player.
 std::vector<std::string> liveRobotArgs(const std::string& exe, const GlobalOptions& g,
                                        const SwarmOptions& o, const std::string& name,
-                                       std::size_t id, const std::string& swarm) {
+                                       std::size_t id, const std::string& swarm, bool imu) {
   std::vector<std::string> args = programArgs(exe, g, /*reads_dataset=*/false);
   args.insert(args.end(), {"robot", "--ros2", "--robot", name, "--id", std::to_string(id),
                            "--points", pointsTopic(name), "--out", o.out, "--swarm", swarm,
                            "--domain", std::to_string(o.domain), "--ros-domain",
                            std::to_string(o.ros_domain), "--interface", o.interface});
+  if (imu) args.insert(args.end(), {"--imu", imuTopic(name)});
   return args;
 }
 
-/// `exe ... play`: robot `name`'s scans on the swarm clock, with their dataset stamps.
+/// `exe ... play`: robot `name`'s scans (and IMU readings, `imu`) on the swarm
+/// clock, with their dataset stamps.
 std::vector<std::string> playerArgs(const std::string& exe, const GlobalOptions& g,
-                                    const SwarmOptions& o, const std::string& name, double epoch) {
+                                    const SwarmOptions& o, const std::string& name, double epoch,
+                                    bool imu) {
   std::vector<std::string> args = programArgs(exe, g, /*reads_dataset=*/true);
   args.insert(args.end(),
               {"play", "--dataset", o.dataset, "--robot", name, "--points", pointsTopic(name),
                "--epoch", fmt::format("{:.6f}", epoch), "--rate", fmt::format("{}", o.rate),
                "--dataset-stamps", "--max-frames", std::to_string(o.max_frames), "--ros-domain",
                std::to_string(o.ros_domain), "--interface", o.interface});
+  if (imu) args.insert(args.end(), {"--imu", imuTopic(name)});
   return args;
 }
 
@@ -545,6 +554,8 @@ void runSwarmProcesses(const SwarmOptions& options, const GlobalOptions& g) {
   const StopSignals signals;
   const auto start = SteadyClock::now();
   const double epoch = unixNow() + o.start_delay;
+  // The simulated robots' IMUs go over ROS 2 too (sensor_msgs/Imu, as a robot's driver sends it).
+  const bool imu = spec.sim.has_value() && spec.sim->imu;
 
   std::vector<Child> children;
   for (const std::size_t r : robots) {
@@ -555,7 +566,7 @@ void runSwarmProcesses(const SwarmOptions& options, const GlobalOptions& g) {
     Child& c = children.emplace_back();
     c.name = name;
     c.log = folder + "/robot.log";
-    c.pid = spawn(o.ros2 ? liveRobotArgs(exe, g, o, name, r, swarm)
+    c.pid = spawn(o.ros2 ? liveRobotArgs(exe, g, o, name, r, swarm, imu)
                          : robotArgs(exe, g, o, name, swarm, epoch),
                   c.log);
   }
@@ -565,7 +576,7 @@ void runSwarmProcesses(const SwarmOptions& options, const GlobalOptions& g) {
     c.name = name;
     c.log = o.out + "/" + name + "/play.log";
     c.player = true;
-    c.pid = spawn(playerArgs(exe, g, o, name, epoch), c.log);
+    c.pid = spawn(playerArgs(exe, g, o, name, epoch, imu), c.log);
   }
   if (!o.json) {
     const std::string where = o.interface.empty() ? "the default interface" : o.interface;

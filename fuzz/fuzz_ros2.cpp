@@ -1,7 +1,7 @@
 // libFuzzer target: ROS 2 messages as a robot receives them (the bytes of one
 // DDS sample, encapsulation header first): PointCloud2 and its points,
-// Odometry, Path, TFMessage, MarkerArray. Bytes may be refused only with
-// core::Error.
+// Odometry, Imu (and the reading of up from it), Path, TFMessage, MarkerArray. Bytes may be refused
+// only with core::Error.
 #include <cstdint>
 #include <span>
 
@@ -28,6 +28,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     (void)dcl::io::decodePointCloud2(m.view(), m.header.stamp, /*drop_nan=*/true);
   });
   decodeAs<Odometry>(bytes, [](const Odometry&) {});
+  decodeAs<Imu>(bytes,
+                [](const Imu& m) { (void)dcl::msg::upInLidar(m, Eigen::Matrix3d::Identity()); });
   decodeAs<Path>(bytes, [](const Path&) {});
   decodeAs<TFMessage>(bytes, [](const TFMessage&) {});
   decodeAs<MarkerArray>(bytes, [](const MarkerArray&) {});

@@ -282,6 +282,8 @@ void writeRos2Seeds(const std::filesystem::path& dir, const dcl::core::PointClou
   odometry.child_frame_id = "base_link";
   odometry.pose.translation() = Eigen::Vector3d(1, 2, 3);
   write(dir, "odometry.cdr", encode(odometry));
+  write(dir, "imu.cdr",
+        encode(dcl::msg::imuOfUp(Eigen::Vector3d(0.01, 0.02, 1.0), 1e-6, {100.5, "imu"})));
   Path path;
   path.header = {100.5, "map"};
   path.poses = {{{100.0, "map"}, odometry.pose}, {{100.5, "map"}, odometry.pose}};
@@ -340,6 +342,8 @@ void writeRos1Seeds(const std::filesystem::path& dir, const dcl::core::PointClou
   odometry.child_frame_id = "base_link";
   odometry.pose.translation() = Eigen::Vector3d(1, 2, 3);
   write(dir, "odometry.ros1", ros1::encode(odometry, 7));
+  write(dir, "imu.ros1",
+        ros1::encode(msg::imuOfUp(Eigen::Vector3d(0.01, 0.02, 1.0), 1e-6, {100.5, "imu"}), 7));
   const msg::PoseStamped pose{{100.5, "map"}, odometry.pose};
   write(dir, "pose.ros1", ros1::encode(pose, 7));
   msg::Path path;

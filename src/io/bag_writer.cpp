@@ -240,6 +240,13 @@ struct BagWriter::Impl {
   TempFile tmp;
   rosbag::Bag bag;
   std::map<std::string, std::uint32_t> sequence;  // per topic
+  /// The types of writeSerialised's messages, by name: their strings, and
+  /// the MessageType (pointing into them) that rosbag is given.
+  struct OwnedType {
+    std::string name, md5, definition;
+    MessageType type{};
+  };
+  std::map<std::string, OwnedType, std::less<>> types;
   bool closed = false;
 
   explicit Impl(std::string p) : path(std::move(p)), tmp(path) {}
@@ -287,6 +294,21 @@ void BagWriter::writeOdometry(const std::string& topic, double stamp,
   const std::uint32_t seq = impl_->sequence[topic]++;
   impl_->write(topic, stamp,
                odometryMessage(seq, rosTime(stamp), T_frame_child, frame_id, child_frame_id));
+}
+
+void BagWriter::writeSerialised(const std::string& topic, double stamp, std::string_view type,
+                                std::string_view md5sum, std::string_view definition,
+                                std::vector<std::uint8_t> bytes) {
+  auto found = impl_->types.find(type);
+  if (found == impl_->types.end()) {
+    found = impl_->types.try_emplace(std::string(type)).first;
+    Impl::OwnedType& owned = found->second;
+    owned.name = type;
+    owned.md5 = md5sum;
+    owned.definition = definition;
+    owned.type = {owned.name.c_str(), owned.md5.c_str(), owned.definition.c_str()};
+  }
+  impl_->write(topic, stamp, RawMessage{&found->second.type, std::move(bytes)});
 }
 
 void BagWriter::close() {

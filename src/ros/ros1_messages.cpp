@@ -141,6 +141,15 @@ class Writer : public Place {
     for (double x : {q.x(), q.y(), q.z(), q.w()}) put(x);
   }
 
+  void putQuaternion(const Eigen::Quaterniond& q) {
+    for (double x : {q.x(), q.y(), q.z(), q.w()}) put(x);
+  }
+
+  void putCovariance(const Eigen::Matrix3d& m) {
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) put(m(r, c));  // row-major
+  }
+
   void putCovariance(const Eigen::Matrix<double, 6, 6>& m) {
     for (int r = 0; r < 6; ++r)
       for (int c = 0; c < 6; ++c) put(m(r, c));  // row-major
@@ -274,6 +283,23 @@ class Reader : public Place {
     return T;
   }
 
+  /// An orientation as it came (an IMU's without an estimate need not be one).
+  Eigen::Quaterniond getQuaternion(std::string_view field) {
+    Eigen::Quaterniond q;
+    q.x() = get<double>(field);
+    q.y() = get<double>(field);
+    q.z() = get<double>(field);
+    q.w() = get<double>(field);
+    return q;
+  }
+
+  Eigen::Matrix3d getCovariance3(std::string_view field) {
+    Eigen::Matrix3d m;
+    for (int r = 0; r < 3; ++r)
+      for (int c = 0; c < 3; ++c) m(r, c) = get<double>(field);
+    return m;
+  }
+
   Eigen::Matrix<double, 6, 6> getCovariance(std::string_view field) {
     Eigen::Matrix<double, 6, 6> m;
     for (int r = 0; r < 6; ++r)
@@ -342,6 +368,34 @@ void read(Reader& in, msg::PointCloud2& m) {
   const auto data = in.getBytes("data");
   m.data.assign(data.begin(), data.end());
   m.is_dense = in.getBool("is_dense");
+}
+
+void write(Writer& out, const msg::Imu& m, std::uint32_t seq) {
+  out.putHeader(m.header, seq);
+  out.putQuaternion(m.orientation);
+  out.putCovariance(m.orientation_covariance);
+  out.putVector(m.angular_velocity);
+  out.putCovariance(m.angular_velocity_covariance);
+  out.putVector(m.linear_acceleration);
+  out.putCovariance(m.linear_acceleration_covariance);
+}
+
+void read(Reader& in, msg::Imu& m) {
+  m.header = in.getHeader();
+  m.orientation = in.getQuaternion("orientation");
+  m.orientation_covariance = in.getCovariance3("orientation_covariance");
+  if (m.hasOrientation()) {  // an estimate: checked as a pose's orientation is
+    const double norm = m.orientation.norm();
+    if (!std::isfinite(norm)) in.fail("orientation", "a value is not finite");
+    if (std::abs(norm - 1.0) > 1e-2) {
+      in.fail("orientation", fmt::format("the norm is {}, not 1", norm));
+    }
+    m.orientation.normalize();
+  }
+  m.angular_velocity = in.getVector("angular_velocity");
+  m.angular_velocity_covariance = in.getCovariance3("angular_velocity_covariance");
+  m.linear_acceleration = in.getVector("linear_acceleration");
+  m.linear_acceleration_covariance = in.getCovariance3("linear_acceleration_covariance");
 }
 
 void write(Writer& out, const msg::Odometry& m, std::uint32_t seq) {
@@ -689,6 +743,33 @@ uint8[] data         # Actual point data, size is (row_step*height)
 
 bool is_dense        # True if there are no invalid points
 )def"};
+constexpr Definition kImu{
+    "sensor_msgs/Imu",
+    R"def(# This is a message to hold data from an IMU (Inertial Measurement Unit)
+#
+# Accelerations should be in m/s^2 (not in g's), and rotational velocity should be in rad/sec
+#
+# If the covariance of the measurement is known, it should be filled in (if all you know is the 
+# variance of each measurement, e.g. from the datasheet, just put those along the diagonal)
+# A covariance matrix of all zeros will be interpreted as "covariance unknown", and to use the
+# data a covariance will have to be assumed or gotten from some other source
+#
+# If you have no estimate for one of the data elements (e.g. your IMU doesn't produce an orientation 
+# estimate), please set element 0 of the associated covariance matrix to -1
+# If you are interpreting this message, please check for a value of -1 in the first element of each 
+# covariance matrix, and disregard the associated estimate.
+
+Header header
+
+geometry_msgs/Quaternion orientation
+float64[9] orientation_covariance # Row major about x, y, z axes
+
+geometry_msgs/Vector3 angular_velocity
+float64[9] angular_velocity_covariance # Row major about x, y, z axes
+
+geometry_msgs/Vector3 linear_acceleration
+float64[9] linear_acceleration_covariance # Row major x, y z 
+)def"};
 constexpr Definition kOdometry{
     "nav_msgs/Odometry",
     R"def(# This represents an estimate of a position and velocity in free space.  
@@ -729,6 +810,12 @@ const MessageType& messageType<msg::PointCloud2>() {
   static const std::string text = fullText(kPointCloud2, {kHeader, kPointField});
   static const MessageType type{"sensor_msgs/PointCloud2", "1158d486dd51d683ce2f1be655c3c181",
                                 text};
+  return type;
+}
+template <>
+const MessageType& messageType<msg::Imu>() {
+  static const std::string text = fullText(kImu, {kHeader, kQuaternion, kVector3});
+  static const MessageType type{"sensor_msgs/Imu", "6a62c6daae103f4ff57a132d6f95cec2", text};
   return type;
 }
 template <>
@@ -786,6 +873,7 @@ M decode(std::span<const std::uint8_t> bytes) {
     return std::move(out).take();                                         \
   }
 DCL_ROS1_MESSAGE(msg::PointCloud2)
+DCL_ROS1_MESSAGE(msg::Imu)
 DCL_ROS1_MESSAGE(msg::Odometry)
 DCL_ROS1_MESSAGE(msg::PoseStamped)
 DCL_ROS1_MESSAGE(msg::Path)

@@ -21,6 +21,7 @@ namespace {
 constexpr std::string_view kCloudType = "sensor_msgs/msg/PointCloud2";
 constexpr std::string_view kOdometryType = "nav_msgs/msg/Odometry";
 constexpr std::string_view kPoseStampedType = "geometry_msgs/msg/PoseStamped";
+constexpr std::string_view kImuType = "sensor_msgs/msg/Imu";
 
 // The .msg definitions of ROS 2 (Humble and later), comments left out, as
 // rosbag2 concatenates them into a schema.
@@ -53,6 +54,14 @@ constexpr std::string_view kOdometryMsg = R"(std_msgs/Header header
 string child_frame_id
 geometry_msgs/PoseWithCovariance pose
 geometry_msgs/TwistWithCovariance twist
+)";
+constexpr std::string_view kImuMsg = R"(std_msgs/Header header
+geometry_msgs/Quaternion orientation
+float64[9] orientation_covariance
+geometry_msgs/Vector3 angular_velocity
+float64[9] angular_velocity_covariance
+geometry_msgs/Vector3 linear_acceleration
+float64[9] linear_acceleration_covariance
 )";
 constexpr std::string_view kPoseStampedMsg = "std_msgs/Header header\nPose pose\n";
 constexpr std::string_view kPoseWithCovarianceMsg = "Pose pose\nfloat64[36] covariance\n";
@@ -176,7 +185,13 @@ const std::string& messageDefinition(std::string_view type) {
                                      {"geometry_msgs/Pose", kPoseMsg},
                                      {"geometry_msgs/Point", kPointMsg},
                                      {"geometry_msgs/Quaternion", kQuaternionMsg}});
+  static const std::string imu =
+      concatenated(kImuMsg, {{"std_msgs/Header", kHeaderMsg},
+                             {"builtin_interfaces/Time", kTimeMsg},
+                             {"geometry_msgs/Quaternion", kQuaternionMsg},
+                             {"geometry_msgs/Vector3", kVector3Msg}});
   if (type == kCloudType) return cloud;
+  if (type == kImuType) return imu;
   if (type == kOdometryType) return odometry;
   if (type == kPoseStampedType) return pose;
   throw core::Error(fmt::format("no ROS 2 message definition of {}", type));
@@ -355,6 +370,10 @@ void McapBagWriter::writePose(const std::string& topic, double stamp,
                               const Eigen::Isometry3d& T_frame_body, const std::string& frame_id) {
   impl_->write(topic, kPoseStampedType, stamp,
                encode(PoseStamped{{stamp, frame_id}, T_frame_body}));
+}
+
+void McapBagWriter::writeImu(const std::string& topic, const msg::Imu& imu) {
+  impl_->write(topic, kImuType, imu.header.stamp, encode(imu));
 }
 
 void McapBagWriter::close() {

@@ -92,6 +92,26 @@ Eigen::Isometry3d fromPose(const geometry_msgs_msg_dds__Point_& p,
   return T;
 }
 
+/// An IMU's orientation: checked as a pose's when `estimated`; otherwise
+/// (orientation_covariance[0] = -1) anything, often zeros, kept as it came.
+Eigen::Quaterniond fromOrientation(const geometry_msgs_msg_dds__Quaternion_& q, bool estimated,
+                                   std::string_view what) {
+  if (!estimated) return {q.w, q.x, q.y, q.z};
+  return Eigen::Quaterniond(fromPose({0.0, 0.0, 0.0}, q, what).rotation());
+}
+
+void toCovariance(const Eigen::Matrix3d& m, double (&out)[9]) {
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) out[3 * r + c] = m(r, c);
+}
+
+Eigen::Matrix3d fromCovariance(const double (&in)[9]) {
+  Eigen::Matrix3d m;
+  for (int r = 0; r < 3; ++r)
+    for (int c = 0; c < 3; ++c) m(r, c) = in[3 * r + c];
+  return m;
+}
+
 void toCovariance(const Eigen::Matrix<double, 6, 6>& m, double (&out)[36]) {
   for (int r = 0; r < 6; ++r)
     for (int c = 0; c < 6; ++c) out[6 * r + c] = m(r, c);
@@ -214,6 +234,34 @@ PointCloud2 Wire<PointCloud2>::in(const C& c) {
   m.row_step = c.row_step;
   m.data.assign(c.data._buffer, c.data._buffer + c.data._length);
   m.is_dense = c.is_dense;
+  return m;
+}
+
+// ---- sensor_msgs/Imu ----
+
+Wire<Imu>::Out::Out(const Imu& m) {
+  c_.header = toHeader(m.header);
+  const Eigen::Quaterniond& q = m.orientation;
+  c_.orientation = {q.x(), q.y(), q.z(), q.w()};
+  toCovariance(m.orientation_covariance, c_.orientation_covariance);
+  const Eigen::Vector3d& w = m.angular_velocity;
+  c_.angular_velocity = {w.x(), w.y(), w.z()};
+  toCovariance(m.angular_velocity_covariance, c_.angular_velocity_covariance);
+  const Eigen::Vector3d& a = m.linear_acceleration;
+  c_.linear_acceleration = {a.x(), a.y(), a.z()};
+  toCovariance(m.linear_acceleration_covariance, c_.linear_acceleration_covariance);
+}
+
+Imu Wire<Imu>::in(const C& c) {
+  Imu m;
+  m.header = fromHeader(c.header);
+  m.orientation_covariance = fromCovariance(c.orientation_covariance);
+  m.orientation = fromOrientation(c.orientation, m.hasOrientation(), "sensor_msgs/Imu orientation");
+  m.angular_velocity = {c.angular_velocity.x, c.angular_velocity.y, c.angular_velocity.z};
+  m.angular_velocity_covariance = fromCovariance(c.angular_velocity_covariance);
+  m.linear_acceleration = {c.linear_acceleration.x, c.linear_acceleration.y,
+                           c.linear_acceleration.z};
+  m.linear_acceleration_covariance = fromCovariance(c.linear_acceleration_covariance);
   return m;
 }
 
@@ -392,6 +440,7 @@ M decode(std::span<const std::uint8_t> bytes) {
     return detail::writeCdr(out.get(), detail::Wire<M>::descriptor()); \
   }
 DCL_ROS2_MESSAGE(PointCloud2)
+DCL_ROS2_MESSAGE(Imu)
 DCL_ROS2_MESSAGE(Odometry)
 DCL_ROS2_MESSAGE(PoseStamped)
 DCL_ROS2_MESSAGE(Path)

@@ -322,6 +322,7 @@ std::size_t Node::matched(const std::string& topic) const {
   template void Node::subscribe<M>(const std::string&, Qos, std::function<void(M &&)>, \
                                    std::int32_t);
 DCL_ROS2_NODE_MESSAGE(PointCloud2)
+DCL_ROS2_NODE_MESSAGE(Imu)
 DCL_ROS2_NODE_MESSAGE(Odometry)
 DCL_ROS2_NODE_MESSAGE(Path)
 DCL_ROS2_NODE_MESSAGE(TFMessage)

@@ -46,6 +46,22 @@ struct Wire<PointCloud2> {
 };
 
 template <>
+struct Wire<Imu> {
+  using C = sensor_msgs_msg_dds__Imu_;
+  static const dds_topic_descriptor_t& descriptor() { return sensor_msgs_msg_dds__Imu__desc; }
+
+  class Out {
+   public:
+    explicit Out(const Imu& m);
+    [[nodiscard]] const C* get() const { return &c_; }
+
+   private:
+    C c_{};
+  };
+  static Imu in(const C& c);
+};
+
+template <>
 struct Wire<Odometry> {
   using C = nav_msgs_msg_dds__Odometry_;
   static const dds_topic_descriptor_t& descriptor() { return nav_msgs_msg_dds__Odometry__desc; }

@@ -8,8 +8,10 @@
 #include <dcl/io/file.hpp>
 #include <dcl/io/kitti_scan.hpp>
 #include <dcl/io/pose_file.hpp>
+#include <dcl/ros/ros1_messages.hpp>
 #include <dcl/ros/ros2_bag.hpp>
 #include <dcl/sim/export.hpp>
+#include <dcl/sim/imu_model.hpp>
 #include <dcl/sim/sim_source.hpp>
 
 namespace dcl::sim {
@@ -62,12 +64,27 @@ io::ScanSourceSpec exportBag(const io::ScanSource& source, const io::RobotSpec& 
                              const ExportOptions& options, Tally& tally) {
   const double offset = options.bag_epoch + robot.start_time;
   const std::string frame = robot.name + "/lidar";
-  const bool mcap = std::is_same_v<Writer, ros2::McapBagWriter>;
+  constexpr bool mcap = std::is_same_v<Writer, ros2::McapBagWriter>;
   const std::string file = mcap ? "scans.mcap" : "scans.bag";
   Writer writer((dir / file).string());
+  const double tilt_sigma = ImuModel{}.readingSigma();
   for (std::size_t i = 0; i < source.size(); ++i) {
+    const double stamp = offset + source.stamp(i);
+    // The IMU's reading of up with the scan, as the orientation of a
+    // sensor_msgs/Imu (the simulated IMU sits at the LiDAR): before it, as a
+    // driver's IMU at hundreds of Hz would be.
+    if (const std::optional<Eigen::Vector3d> up = source.up(i)) {
+      const msg::Imu imu = msg::imuOfUp(*up, tilt_sigma * tilt_sigma, {stamp, frame});
+      if constexpr (mcap) {
+        writer.writeImu(options.imu_topic, imu);
+      } else {
+        const ros1::MessageType& type = ros1::messageType<msg::Imu>();
+        writer.writeSerialised(options.imu_topic, stamp, type.name, type.md5sum, type.definition,
+                               ros1::encode(imu, static_cast<std::uint32_t>(i)));
+      }
+    }
     const core::PointCloud cloud = source.scan(i);
-    writer.writeCloud(options.cloud_topic, offset + source.stamp(i), cloud, frame);
+    writer.writeCloud(options.cloud_topic, stamp, cloud, frame);
     tally.add(cloud);
   }
   for (std::size_t i = 0; gt && i < gt->size(); ++i) {

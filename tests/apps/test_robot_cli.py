@@ -316,6 +316,11 @@ class Ros2Robot(unittest.TestCase):
             self.assertGreater(report["bytes_received"], 0, name)
             self.assertEqual(r["counters"]["scans_refused"], 0, name)
             self.assertGreaterEqual(r["frames"], 0.95 * self.SCANS, name)
+            # The simulated IMU goes over ROS 2 too (sensor_msgs/Imu): every
+            # scan is levelled with the reading its player sent with it.
+            self.assertGreaterEqual(r["counters"]["imu_received"], r["frames"], name)
+            self.assertEqual(r["counters"]["imu_without_orientation"], 0, name)
+            self.assertEqual(r["counters"]["scans_without_imu"], 0, name)
             # Stamped as the dataset stamps them: the trajectory is on its clock.
             self.assertEqual(len(tum_rows(os.path.join(out, name, "trajectory.tum"))),
                              r["keyframes"], name)

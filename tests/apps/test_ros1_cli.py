@@ -97,7 +97,8 @@ class Ros1Robot(unittest.TestCase):
         for i, r in enumerate(self.ROBOTS):
             robots[r] = self.spawn(
                 [DCL_SLAM, "robot", "--ros1", "--robot", r, "--id", str(i), "--out", out,
-                 "--points", f"/{r}/points", "--domain", "177", "--interface", "lo",
+                 "--points", f"/{r}/points", "--imu", f"/{r}/imu", "--domain", "177",
+                 "--interface", "lo",
                  "--swarm", f"ros1-test-{os.getpid()}",
                  *(["--frame-ids", "world,b_odom,b_base,b_lidar"] if r == "b" else [])])
         for r, proc in robots.items():
@@ -106,7 +107,7 @@ class Ros1Robot(unittest.TestCase):
         # Each robot's bag as its LiDAR driver would publish it, both at once.
         players = [subprocess.Popen(
             ["rosbag", "play", "--quiet", "-r", "2", os.path.join(self.dataset, "bag", r, "scans.bag"),
-             f"/points:=/{r}/points", f"/ground_truth:=/{r}/ground_truth"],
+             f"/points:=/{r}/points", f"/imu:=/{r}/imu", f"/ground_truth:=/{r}/ground_truth"],
             env=self.env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
             for r in self.ROBOTS]
         for p in players:
@@ -135,6 +136,11 @@ class Ros1Robot(unittest.TestCase):
             self.assertEqual(report["frames"] + counters["scans_dropped"],
                              counters["scans_received"], r)
             self.assertGreater(report["keyframes"], 10, r)
+            # The bag's IMU (sensor_msgs/Imu, one reading a scan) levels the
+            # scans the robot took: each found its reading.
+            self.assertGreaterEqual(counters["imu_received"], self.SCANS * 0.9, r)
+            self.assertEqual(counters["imu_without_orientation"], 0, r)
+            self.assertEqual(counters["scans_without_imu"], 0, r)
             # Stamped as the bag's clouds, against the bag's own ground truth.
             gt = os.path.join(self.tmp.name, f"gt_{r}.tum")
             run("convert", os.path.join(self.dataset, "bag", r, "scans.bag"), gt, "--topic",

@@ -29,6 +29,7 @@
 #include <dcl/ros/ros1_messages.hpp>
 
 #include "../common/kitti_test_data.hpp"
+#include "imu_test_messages.hpp"
 
 // The largest allocation made while a LargestAllocation lives (the test's
 // own thread and any other; none but the decoder's run meanwhile).
@@ -61,6 +62,7 @@ using nlohmann::json;
 namespace fs = std::filesystem;
 using msg::ColorRGBA;
 using msg::Header;
+using msg::Imu;
 using msg::Marker;
 using msg::MarkerArray;
 using msg::Odometry;
@@ -117,6 +119,14 @@ Odometry odometryMessage() {
   m.linear_velocity = {8.5, 0.1, -0.05};
   m.angular_velocity = {0.01, -0.02, 0.4};
   return m;
+}
+
+Imu imuMessage() {
+  return test::imuMessage(kStamp + 0.25);
+}
+
+Imu imuWithoutOrientation() {
+  return test::imuWithoutOrientation(kStamp + 0.25);
 }
 
 PoseStamped poseMessage() {
@@ -221,6 +231,11 @@ json toJson(const Odometry& m, std::uint32_t seq) {
            {{"twist", {{"linear", xyz(m.linear_velocity)}, {"angular", xyz(m.angular_velocity)}}},
             {"covariance", covariance(m.twist_covariance)}}}};
 }
+json toJson(const Imu& m, std::uint32_t seq) {
+  json out = test::imuFieldsJson(m);
+  out["header"] = toJson(m.header, seq);
+  return out;
+}
 json toJson(const PoseStamped& m, std::uint32_t seq) {
   return {{"header", toJson(m.header, seq)}, {"pose", toJson(m.pose)}};
 }
@@ -320,6 +335,10 @@ void expectSame(const Odometry& a, const Odometry& b) {
   EXPECT_EQ(a.angular_velocity, b.angular_velocity);
   EXPECT_EQ(a.twist_covariance, b.twist_covariance);
 }
+void expectSame(const Imu& a, const Imu& b) {
+  expectSame(a.header, b.header);
+  test::expectSameImuFields(a, b);
+}
 void expectSame(const PoseStamped& a, const PoseStamped& b) {
   expectSame(a.header, b.header);
   expectSame(a.pose, b.pose, "pose");
@@ -409,6 +428,8 @@ void expectRoundTrip(const M& m) {
 TEST(Ros1Messages, EachMessageReadsBackAsWritten) {
   expectRoundTrip(cloudMessage());
   expectRoundTrip(odometryMessage());
+  expectRoundTrip(imuMessage());
+  expectRoundTrip(imuWithoutOrientation());
   expectRoundTrip(poseMessage());
   expectRoundTrip(pathMessage());
   expectRoundTrip(tfMessage());
@@ -443,6 +464,8 @@ TEST(Ros1Messages, TypesAreNamedAsRos1NamesThem) {
   EXPECT_EQ(messageType<PointCloud2>().md5sum, "1158d486dd51d683ce2f1be655c3c181");
   EXPECT_EQ(messageType<Odometry>().name, "nav_msgs/Odometry");
   EXPECT_EQ(messageType<Odometry>().md5sum, "cd5e73d190d741a2f92e81eda573aca7");
+  EXPECT_EQ(messageType<Imu>().name, "sensor_msgs/Imu");
+  EXPECT_EQ(messageType<Imu>().md5sum, "6a62c6daae103f4ff57a132d6f95cec2");
   EXPECT_EQ(messageType<PoseStamped>().name, "geometry_msgs/PoseStamped");
   EXPECT_EQ(messageType<PoseStamped>().md5sum, "d3812c3cbc69362b77dc0b19b345f8f5");
   EXPECT_EQ(messageType<Path>().name, "nav_msgs/Path");
@@ -534,6 +557,7 @@ void expectEveryCutRefused(const M& m) {
 TEST(Ros1Messages, BytesCutShortAreRefusedAtEveryLength) {
   expectEveryCutRefused(cloudMessage(500));
   expectEveryCutRefused(odometryMessage());
+  expectEveryCutRefused(imuMessage());
   expectEveryCutRefused(poseMessage());
   expectEveryCutRefused(pathMessage());
   expectEveryCutRefused(tfMessage());
@@ -547,6 +571,11 @@ TEST(Ros1Messages, ARefusalNamesTheTypeAndTheField) {
             fmt::format("nav_msgs/Odometry: pose.covariance: truncated: 8 bytes needed at byte "
                         "{}, 4 left",
                         covariance + 96));
+  // An orientation said to be an estimate must be one; marked -1, it need not.
+  Imu zero = imuWithoutOrientation();
+  zero.orientation_covariance(0, 0) = 1e-6;
+  EXPECT_EQ(refusal<Imu>(encode(zero)), "sensor_msgs/Imu: orientation: the norm is 0, not 1");
+  EXPECT_FALSE(decode<Imu>(encode(imuWithoutOrientation())).hasOrientation());
   const std::vector<std::uint8_t> path = encode(pathMessage());
   const std::string cut = refusal<Path>(std::span(path).first(path.size() - 3));
   EXPECT_EQ(cut.rfind("nav_msgs/Path: poses[2].pose.orientation: truncated", 0), 0u) << cut;
@@ -627,6 +656,7 @@ TEST(Ros1Messages, DamagedBytesEndInAnErrorNamingTheType) {
   std::mt19937 rng(31);
   expectOnlyErrors(cloudMessage(), rng);
   expectOnlyErrors(odometryMessage(), rng);
+  expectOnlyErrors(imuMessage(), rng);
   expectOnlyErrors(poseMessage(), rng);
   expectOnlyErrors(pathMessage(), rng);
   expectOnlyErrors(tfMessage(), rng);
@@ -700,6 +730,8 @@ TEST(Ros1Messages, GenpyReadsOursAndWeReadGenpys) {
   const TempFolder dir("dcl_ros1_crosscheck");
   writeCase(dir.path(), "cloud", cloudMessage(), 17);
   writeCase(dir.path(), "odometry", odometryMessage(), 4242);
+  writeCase(dir.path(), "imu", imuMessage(), 77);
+  writeCase(dir.path(), "imu_bare", imuWithoutOrientation(), 78);
   writeCase(dir.path(), "pose", poseMessage(), 0xfffffffeu);
   writeCase(dir.path(), "path", pathMessage(), 9);
   writeCase(dir.path(), "tf", tfMessage(), 0);
@@ -716,6 +748,8 @@ TEST(Ros1Messages, GenpyReadsOursAndWeReadGenpys) {
   const json genpy = json::parse(output);
   expectAlike(genpy, dir.path(), "cloud", cloudMessage(), 17);
   expectAlike(genpy, dir.path(), "odometry", odometryMessage(), 4242);
+  expectAlike(genpy, dir.path(), "imu", imuMessage(), 77);
+  expectAlike(genpy, dir.path(), "imu_bare", imuWithoutOrientation(), 78);
   expectAlike(genpy, dir.path(), "pose", poseMessage(), 0xfffffffeu);
   expectAlike(genpy, dir.path(), "path", pathMessage(), 9);
   expectAlike(genpy, dir.path(), "tf", tfMessage(), 0);

@@ -20,6 +20,7 @@
 #include <dcl/ros/ros2_messages.hpp>
 
 #include "../common/kitti_test_data.hpp"
+#include "imu_test_messages.hpp"
 
 namespace dcl::ros2 {
 namespace {
@@ -62,6 +63,14 @@ Odometry odometryMessage() {
   m.linear_velocity = {8.5, 0.1, -0.05};
   m.angular_velocity = {0.01, -0.02, 0.4};
   return m;
+}
+
+Imu imuMessage() {
+  return test::imuMessage(kStamp + 0.25);
+}
+
+Imu imuWithoutOrientation() {
+  return test::imuWithoutOrientation(kStamp + 0.25);
 }
 
 Path pathMessage() {
@@ -153,6 +162,11 @@ json toJson(const Odometry& m) {
            {{"twist", {{"linear", xyz(m.linear_velocity)}, {"angular", xyz(m.angular_velocity)}}},
             {"covariance", covariance(m.twist_covariance)}}}};
 }
+json toJson(const Imu& m) {
+  json out = test::imuFieldsJson(m);
+  out["header"] = toJson(m.header);
+  return out;
+}
 json toJson(const Path& m) {
   json poses = json::array();
   for (const auto& p : m.poses)
@@ -234,6 +248,10 @@ void expectSame(const Odometry& a, const Odometry& b) {
   EXPECT_EQ(a.angular_velocity, b.angular_velocity);
   EXPECT_EQ(a.twist_covariance, b.twist_covariance);
 }
+void expectSame(const Imu& a, const Imu& b) {
+  expectSame(a.header, b.header);
+  test::expectSameImuFields(a, b);
+}
 void expectSame(const Path& a, const Path& b) {
   expectSame(a.header, b.header);
   ASSERT_EQ(a.poses.size(), b.poses.size());
@@ -282,6 +300,8 @@ void expectRoundTrip(const M& m) {
 TEST(Ros2Messages, EachMessageReadsBackAsWritten) {
   expectRoundTrip(cloudMessage());
   expectRoundTrip(odometryMessage());
+  expectRoundTrip(imuMessage());
+  expectRoundTrip(imuWithoutOrientation());
   expectRoundTrip(pathMessage());
   expectRoundTrip(tfMessage());
   expectRoundTrip(markerMessage());
@@ -290,6 +310,7 @@ TEST(Ros2Messages, EachMessageReadsBackAsWritten) {
 TEST(Ros2Messages, TypeNamesAreRos2s) {
   EXPECT_EQ(typeName<PointCloud2>(), "sensor_msgs::msg::dds_::PointCloud2_");
   EXPECT_EQ(typeName<Odometry>(), "nav_msgs::msg::dds_::Odometry_");
+  EXPECT_EQ(typeName<Imu>(), "sensor_msgs::msg::dds_::Imu_");
   EXPECT_EQ(typeName<Path>(), "nav_msgs::msg::dds_::Path_");
   EXPECT_EQ(typeName<TFMessage>(), "tf2_msgs::msg::dds_::TFMessage_");
   EXPECT_EQ(typeName<MarkerArray>(), "visualization_msgs::msg::dds_::MarkerArray_");
@@ -366,6 +387,7 @@ TEST(Ros2Messages, DamagedBytesEndInAnErrorNamingTheType) {
   std::mt19937 rng(30);
   expectOnlyErrors(cloudMessage(), rng);
   expectOnlyErrors(odometryMessage(), rng);
+  expectOnlyErrors(imuMessage(), rng);
   expectOnlyErrors(pathMessage(), rng);
   expectOnlyErrors(tfMessage(), rng);
   expectOnlyErrors(markerMessage(), rng);
@@ -395,6 +417,54 @@ TEST(Ros2Messages, AZeroOrientationIsRefused) {
   ASSERT_NE(at, bytes.end());
   std::fill(at - 24, at + 8, 0);
   EXPECT_THROW(decode<Odometry>(bytes), core::Error);
+}
+
+TEST(Ros2Messages, AnImusOrientationIsCheckedOnlyWhenItIsAnEstimate) {
+  // A zero orientation said to be an estimate is refused, naming the field;
+  // marked -1 (no estimate), it reads as it came.
+  Imu m = imuWithoutOrientation();
+  m.orientation_covariance(0, 0) = 1e-6;
+  try {
+    (void)decode<Imu>(encode(m));
+    FAIL() << "accepted";
+  } catch (const core::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("sensor_msgs/Imu orientation"), std::string::npos)
+        << e.what();
+  }
+  const Imu bare = decode<Imu>(encode(imuWithoutOrientation()));
+  EXPECT_FALSE(bare.hasOrientation());
+  EXPECT_EQ(bare.orientation.coeffs(), Eigen::Vector4d::Zero());
+}
+
+TEST(Ros2Messages, AnImuReadsUpInTheLidarFrame) {
+  // An IMU pitched 5 deg nose down and rolled 2 deg, turned 90 deg about z in
+  // the LiDAR frame: up in the LiDAR frame is the world's z seen from the LiDAR.
+  const Eigen::Matrix3d R_world_imu =
+      (Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()) *
+       Eigen::AngleAxisd(5.0 * M_PI / 180.0, Eigen::Vector3d::UnitY()) *
+       Eigen::AngleAxisd(2.0 * M_PI / 180.0, Eigen::Vector3d::UnitX()))
+          .toRotationMatrix();
+  const Eigen::Matrix3d R_lidar_imu =
+      Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  Imu m = imuMessage();
+  m.orientation = Eigen::Quaterniond(R_world_imu);
+  const Eigen::Matrix3d R_world_lidar = R_world_imu * R_lidar_imu.transpose();
+  const Eigen::Vector3d expected = R_world_lidar.transpose() * Eigen::Vector3d::UnitZ();
+  const std::optional<Eigen::Vector3d> up = msg::upInLidar(decode<Imu>(encode(m)), R_lidar_imu);
+  ASSERT_TRUE(up.has_value());
+  EXPECT_LT((*up - expected).norm(), 1e-12);
+  // Its yaw does not matter.
+  m.orientation = Eigen::Quaterniond(Eigen::AngleAxisd(2.0, Eigen::Vector3d::UnitZ())) *
+                  Eigen::Quaterniond(R_world_imu);
+  EXPECT_LT((*msg::upInLidar(m, R_lidar_imu) - expected).norm(), 1e-12);
+  // No orientation, no reading: the acceleration holds the vehicle's own too.
+  EXPECT_FALSE(msg::upInLidar(imuWithoutOrientation(), R_lidar_imu).has_value());
+  // The message a player sends for a reading of up reads as that reading.
+  const Eigen::Vector3d tilted = Eigen::Vector3d(0.05, -0.02, 1.0).normalized();
+  const Imu played = decode<Imu>(encode(msg::imuOfUp(tilted, 1e-6, {kStamp, "a/lidar"})));
+  EXPECT_LT((*msg::upInLidar(played, Eigen::Matrix3d::Identity()) - tilted).norm(), 1e-12);
+  EXPECT_EQ(played.angular_velocity_covariance(0, 0), -1.0);
+  EXPECT_EQ(played.linear_acceleration_covariance(0, 0), -1.0);
 }
 
 // ---- against Foxglove's implementation ----
@@ -432,6 +502,8 @@ TEST(Ros2Messages, FoxglovesImplementationReadsOursAndWeReadTheirs) {
   fs::create_directories(dir);
   writePair(dir, "cloud", "sensor_msgs/PointCloud2", cloudMessage());
   writePair(dir, "odometry", "nav_msgs/Odometry", odometryMessage());
+  writePair(dir, "imu", "sensor_msgs/Imu", imuMessage());
+  writePair(dir, "imu_bare", "sensor_msgs/Imu", imuWithoutOrientation());
   writePair(dir, "path", "nav_msgs/Path", pathMessage());
   writePair(dir, "tf", "tf2_msgs/TFMessage", tfMessage());
   writePair(dir, "markers", "visualization_msgs/MarkerArray", markerMessage());
@@ -450,6 +522,8 @@ TEST(Ros2Messages, FoxglovesImplementationReadsOursAndWeReadTheirs) {
   }
   expectTheirsReadAsOurs(dir, "cloud", cloudMessage());
   expectTheirsReadAsOurs(dir, "odometry", odometryMessage());
+  expectTheirsReadAsOurs(dir, "imu", imuMessage());
+  expectTheirsReadAsOurs(dir, "imu_bare", imuWithoutOrientation());
   expectTheirsReadAsOurs(dir, "path", pathMessage());
   expectTheirsReadAsOurs(dir, "tf", tfMessage());
   expectTheirsReadAsOurs(dir, "markers", markerMessage());

@@ -2,6 +2,7 @@
 // and Debian's Python rosbag read back, equal to the regenerated scans, and
 // byte-identical when exported twice.
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -15,6 +16,7 @@
 #include <dcl/io/rosbag.hpp>
 #include <dcl/io/scan_source.hpp>
 #include <dcl/ros/ros2_bag.hpp>
+#include <dcl/ros/ros2_messages.hpp>
 #include <dcl/sim/export.hpp>
 #include <dcl/sim/sim_source.hpp>
 
@@ -139,6 +141,42 @@ TEST_F(ExportTest, Ros2BagsHoldScansWithEveryChannelAndGroundTruth) {
   EXPECT_NEAR(gt.stamp(2) - 1.0e9, expected.stamp(2), 1e-6);
   EXPECT_TRUE(gt.pose(2).isApprox(expected.pose(2), 1e-12));
   EXPECT_TRUE(io::McapReader(bag).indexed());
+}
+
+TEST(ExportImu, BagsCarryEachScansImuReadingAsAnOrientation) {
+  // Robots with IMUs: each scan's reading of up goes on /imu before the scan,
+  // as a sensor_msgs/Imu whose orientation reads as that up again.
+  const fs::path dir = test::freshDir();
+  Preset preset = test::tinyPreset(7, 3);
+  preset.imu = true;
+  const io::DatasetSpec spec = writeSimDataset((dir / "sim").string(), preset);
+  const auto source = openRobotScans(spec, 0);
+  ASSERT_TRUE(source->up(2).has_value());
+  (void)exportDataset(spec, (dir / "bag").string(), {.format = ExportFormat::bag});
+  const std::vector<io::BagTopic> topics = io::listBagTopics((dir / "bag/a/scans.bag").string());
+  const auto imu = std::find_if(topics.begin(), topics.end(),
+                                [](const io::BagTopic& t) { return t.name == "/imu"; });
+  ASSERT_NE(imu, topics.end()) << io::describeTopics(topics);
+  EXPECT_EQ(imu->type, "sensor_msgs/Imu");
+  EXPECT_EQ(imu->messages, 3u);
+  // Debian's rosbag decodes them from the definition the bag stores.
+  EXPECT_EQ(pythonMessageCount((dir / "bag/a/scans.bag").string()), 9u);
+  (void)exportDataset(spec, (dir / "mcap").string(), {.format = ExportFormat::mcap});
+  io::McapReader reader((dir / "mcap/a/scans.mcap").string());
+  std::vector<std::uint16_t> imu_channels;
+  for (const io::McapChannel& c : reader.channels()) {
+    if (c.topic == "/imu") imu_channels.push_back(c.id);
+  }
+  ASSERT_EQ(imu_channels.size(), 1u);
+  const auto messages = reader.messages(imu_channels);
+  ASSERT_EQ(messages.size(), 3u);
+  for (std::size_t i = 0; i < 3; ++i) {
+    const msg::Imu m = ros2::decode<msg::Imu>(reader.read(messages[i]).data);
+    EXPECT_NEAR(m.header.stamp - 1.0e9, source->stamp(i), 1e-6);
+    const auto up = msg::upInLidar(m, Eigen::Matrix3d::Identity());
+    ASSERT_TRUE(up.has_value());
+    EXPECT_LT((*up - *source->up(i)).norm(), 1e-12) << i;
+  }
 }
 
 TEST(ExportFormatNames, ParseBothWays) {

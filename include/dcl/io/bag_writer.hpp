@@ -1,11 +1,14 @@
 #pragma once
 
 /// Writing ROS1 bags (format 2.0) without ROS: `sensor_msgs/PointCloud2` scans
-/// and `nav_msgs/Odometry` poses, readable by rosbag, rviz and io::BagCloudReader.
+/// and `nav_msgs/Odometry` poses (and any message serialised elsewhere), readable by rosbag, rviz
+/// and io::BagCloudReader.
 
 #include <Eigen/Geometry>
 #include <memory>
 #include <string>
+#include <string_view>
+#include <vector>
 
 #include <dcl/core/point_cloud.hpp>
 
@@ -32,6 +35,12 @@ class BagWriter {
   /// A nav_msgs/Odometry with pose `T_frame_child` (covariances and twist zero).
   void writeOdometry(const std::string& topic, double stamp, const Eigen::Isometry3d& T_frame_child,
                      const std::string& frame_id, const std::string& child_frame_id);
+
+  /// A message serialised elsewhere (e.g. ros1::encode) of type `type`, given by
+  /// its name, MD5 sum and full definition as ROS 1 holds them.
+  void writeSerialised(const std::string& topic, double stamp, std::string_view type,
+                       std::string_view md5sum, std::string_view definition,
+                       std::vector<std::uint8_t> bytes);
 
   /// Finishes the bag and moves it to its final name; throws core::FileError on failure.
   void close();

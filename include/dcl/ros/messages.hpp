@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -52,6 +53,38 @@ struct Odometry {
   Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();  ///< rad/s
   Eigen::Matrix<double, 6, 6> twist_covariance = Eigen::Matrix<double, 6, 6>::Zero();
 };
+
+/// sensor_msgs/Imu: the IMU frame's orientation in a frame whose z is up
+/// (REP 145: ENU), its angular velocity (rad/s) and linear acceleration
+/// (m/s^2) in the IMU frame; each covariance row-major about x, y, z, and an
+/// element (0, 0) of -1 where the IMU gives no such estimate.
+struct Imu {
+  Header header{};
+  Eigen::Quaterniond orientation = Eigen::Quaterniond::Identity();
+  Eigen::Matrix3d orientation_covariance = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d angular_velocity = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d angular_velocity_covariance = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d linear_acceleration = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d linear_acceleration_covariance = Eigen::Matrix3d::Zero();
+
+  /// False where orientation_covariance(0, 0) is -1: the orientation is no estimate.
+  [[nodiscard]] bool hasOrientation() const { return orientation_covariance(0, 0) != -1.0; }
+};
+
+/// An IMU reading of up, as the built-in odometry levels with it: the
+/// direction against gravity in the LiDAR's frame, from the message's
+/// orientation (its roll and pitch; the yaw does not matter) and the IMU's
+/// rotation in the LiDAR frame, `R_lidar_imu`. None when the message has no
+/// orientation: its acceleration alone holds the vehicle's own acceleration
+/// too (a car braking at 2 m/s^2 reads 12 deg off up), and an orientation
+/// filter (the IMU's own, or e.g. imu_filter_madgwick) is what takes it out.
+std::optional<Eigen::Vector3d> upInLidar(const Imu& imu, const Eigen::Matrix3d& R_lidar_imu);
+
+/// An IMU message that says only `up_lidar` (the LiDAR's reading of up, with
+/// the IMU at the LiDAR): an orientation of that roll and pitch and yaw 0,
+/// roll and pitch variance `tilt_variance` (rad^2), the yaw's marked unknown
+/// (a variance of 4 pi^2), no angular velocity and no acceleration (-1).
+Imu imuOfUp(const Eigen::Vector3d& up_lidar, double tilt_variance, Header header);
 
 /// geometry_msgs/PoseStamped.
 struct PoseStamped {

@@ -41,6 +41,7 @@ const MessageType& messageType();
 /// lifetime that is not a ROS 1 duration (int32 seconds), or a string or an
 /// array longer than a uint32 count.
 std::vector<std::uint8_t> encode(const msg::PointCloud2& message, std::uint32_t seq = 0);
+std::vector<std::uint8_t> encode(const msg::Imu& message, std::uint32_t seq = 0);
 std::vector<std::uint8_t> encode(const msg::Odometry& message, std::uint32_t seq = 0);
 std::vector<std::uint8_t> encode(const msg::PoseStamped& message, std::uint32_t seq = 0);
 std::vector<std::uint8_t> encode(const msg::Path& message, std::uint32_t seq = 0);

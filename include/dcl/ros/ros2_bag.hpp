@@ -23,6 +23,7 @@
 #include <dcl/io/mcap.hpp>
 #include <dcl/io/rosbag.hpp>
 #include <dcl/io/scan_source.hpp>
+#include <dcl/ros/messages.hpp>
 
 namespace dcl::ros2 {
 
@@ -119,6 +120,8 @@ class McapBagWriter {
   /// A nav_msgs/Odometry with pose `T_frame_child` (covariances and twist zero).
   void writeOdometry(const std::string& topic, double stamp, const Eigen::Isometry3d& T_frame_child,
                      const std::string& frame_id, const std::string& child_frame_id);
+  /// A sensor_msgs/Imu, logged at its header stamp.
+  void writeImu(const std::string& topic, const msg::Imu& imu);
   /// A geometry_msgs/PoseStamped with pose `T_frame_body`.
   void writePose(const std::string& topic, double stamp, const Eigen::Isometry3d& T_frame_body,
                  const std::string& frame_id);

@@ -19,6 +19,7 @@ namespace dcl::ros2 {
 
 using msg::ColorRGBA;
 using msg::Header;
+using msg::Imu;
 using msg::Marker;
 using msg::MarkerArray;
 using msg::Odometry;
@@ -35,6 +36,7 @@ std::string_view typeName();
 
 /// The message's bytes on the wire: encapsulation header (CDR, little-endian), then XCDR1.
 std::vector<std::uint8_t> encode(const PointCloud2& message);
+std::vector<std::uint8_t> encode(const Imu& message);
 std::vector<std::uint8_t> encode(const Odometry& message);
 std::vector<std::uint8_t> encode(const PoseStamped& message);
 std::vector<std::uint8_t> encode(const Path& message);

@@ -31,7 +31,8 @@ struct ExportOptions {
   ExportFormat format = ExportFormat::kitti;         ///< default KITTI folders
   std::string cloud_topic = "/points";               ///< bag topic of the scans
   std::string ground_truth_topic = "/ground_truth";  ///< bag topic of the ground truth
-  std::string world_frame = "world";                 ///< frame_id of the ground truth
+  std::string imu_topic = "/imu";     ///< bag topic of the IMU's readings (sensor_msgs/Imu)
+  std::string world_frame = "world";  ///< frame_id of the ground truth
   /// s, added to every bag (and MCAP) stamp: ROS time must be positive, robot stamps start at 0.
   /// Readers of the exported dataset subtract the first scan's stamp again.
   double bag_epoch = 1.0e9;

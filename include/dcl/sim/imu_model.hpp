@@ -6,6 +6,7 @@
 /// without it a LiDAR odometry drifts in roll and pitch, and its height with them.
 
 #include <Eigen/Core>
+#include <cmath>
 #include <cstdint>
 
 namespace dcl::sim {
@@ -16,6 +17,12 @@ namespace dcl::sim {
 struct ImuModel {
   double tilt_sigma_deg = 0.03;   ///< a unit's fixed tilt about the sensor's x and y axes, 1 sigma
   double noise_sigma_deg = 0.02;  ///< a reading's own error about each of those axes, 1 sigma
+
+  /// rad, 1 sigma: a reading's whole error about each axis (tilt and noise),
+  /// what a message carrying the reading gives as its roll and pitch covariance.
+  [[nodiscard]] double readingSigma() const {
+    return std::hypot(tilt_sigma_deg, noise_sigma_deg) * M_PI / 180.0;
+  }
 };
 
 /// A unit's fixed tilt (rad, about the sensor's x and y axes), drawn from `seed`.
