@@ -15,7 +15,6 @@
 #include <csignal>
 #include <cstdint>
 #include <cstdio>
-#include <deque>
 #include <functional>
 #include <limits>
 #include <map>
@@ -38,6 +37,7 @@
 #include <dcl/odometry/external_odometry.hpp>
 #include <dcl/registration/voxel_filter.hpp>
 #include <dcl/robot/robot_node.hpp>
+#include <dcl/ros/imu_readings.hpp>
 #include <dcl/ros/ros1_node.hpp>
 #include <dcl/ros/ros2_node.hpp>
 #include <dcl/sim/sim_source.hpp>
@@ -424,7 +424,7 @@ struct LiveRobot {
   /// node's clock, the last kImuWindow seconds of them.
   static constexpr double kImuWindow = 2.0;
   Eigen::Matrix3d R_lidar_imu;
-  std::deque<std::pair<double, Eigen::Vector3d>> imu_readings;
+  msg::UpReadings imu_readings;
   std::size_t imu_received = 0;             ///< IMU messages
   std::size_t imu_without_orientation = 0;  ///< of them, no orientation to level with
   std::size_t scans_without_imu = 0;        ///< scans with no IMU reading within ros.imu_max_gap
@@ -451,16 +451,7 @@ struct LiveRobot {
         metered(dds, o.meter_interval),
         node(metered, robotConfig(app), incarnation, frontEnd(ros, app.external, external)),
         joined_at(unixNow()),
-        R_lidar_imu(rotationOf(ros.imu_rpy)) {}
-
-  /// The rotation of fixed-axis roll, pitch, yaw (deg) about x, y, z.
-  static Eigen::Matrix3d rotationOf(const std::vector<double>& rpy_deg) {
-    const double k = M_PI / 180.0;
-    return (Eigen::AngleAxisd(k * rpy_deg.at(2), Eigen::Vector3d::UnitZ()) *
-            Eigen::AngleAxisd(k * rpy_deg.at(1), Eigen::Vector3d::UnitY()) *
-            Eigen::AngleAxisd(k * rpy_deg.at(0), Eigen::Vector3d::UnitX()))
-        .toRotationMatrix();
-  }
+        R_lidar_imu(msg::rotationOfRpy(ros.imu_rpy.at(0), ros.imu_rpy.at(1), ros.imu_rpy.at(2))) {}
 
   /// `config` once every topic name is one the middleware takes (a bad name
   /// fails before the node joins).
@@ -534,28 +525,12 @@ struct LiveRobot {
 
   void onImu(msg::Imu&& m) {
     ++imu_received;
-    const std::optional<Eigen::Vector3d> up = msg::upInLidar(m, R_lidar_imu);
-    if (!up) {
+    const double stamp = nodeStamp(m.header.stamp);
+    if (!imu_readings.add(m, R_lidar_imu, stamp - m.header.stamp)) {
       ++imu_without_orientation;
       return;
     }
-    const double stamp = nodeStamp(m.header.stamp);
-    imu_readings.emplace_back(stamp, *up);
-    const double newest = std::max(stamp, imu_readings.front().first);
-    while (!imu_readings.empty() && imu_readings.front().first < newest - kImuWindow)
-      imu_readings.pop_front();
-  }
-
-  /// The IMU's reading of up nearest `stamp`, within ros.imu_max_gap.
-  std::optional<Eigen::Vector3d> upAt(double stamp) const {
-    const std::pair<double, Eigen::Vector3d>* nearest = nullptr;
-    for (const auto& reading : imu_readings) {
-      if (nearest == nullptr || std::abs(reading.first - stamp) < std::abs(nearest->first - stamp))
-        nearest = &reading;
-    }
-    if (nearest == nullptr || std::abs(nearest->first - stamp) > ros.imu_max_gap)
-      return std::nullopt;
-    return nearest->second;
+    imu_readings.dropBefore(stamp - kImuWindow);
   }
 
   void onOdometry(msg::Odometry&& m) {
@@ -577,12 +552,12 @@ struct LiveRobot {
     }
     // Its IMU reading may still be on its way (another connection): the scan
     // waits for a reading at or after its stamp, ros.imu_max_gap at most.
-    if (!ros.imu.empty() && (imu_readings.empty() || imu_readings.back().first < waiting->stamp) &&
+    if (!ros.imu.empty() && !imu_readings.reaches(waiting->stamp) &&
         unixNow() - waiting->arrived < ros.imu_max_gap)
       return;
     std::optional<Eigen::Vector3d> up;
     if (!ros.imu.empty()) {
-      up = upAt(waiting->stamp);
+      up = imu_readings.nearest(waiting->stamp, ros.imu_max_gap);
       if (!up) ++scans_without_imu;
     }
     node.addScan(waiting->stamp, waiting->scan, up);

@@ -218,6 +218,17 @@ ScanSourceSpec readScans(MapReader scans, const DatasetReadOptions& options) {
                  fmt::format("missing (a {} source needs it)", name));
     }
     out.topic = scans.string("topic", *topic);
+    if (const auto imu = scans.optional("imu_topic"))
+      out.imu_topic = scans.string("imu_topic", *imu);
+    if (const auto rpy = scans.optional("imu_rpy")) {
+      if (!rpy->IsSequence() || rpy->size() != 3)
+        scans.fail(rpy->Mark(), scans.keyOf("imu_rpy"), "expected [roll, pitch, yaw] in deg");
+      for (std::size_t k = 0; k < 3; ++k) {
+        out.imu_rpy[k] = scans.number("imu_rpy", (*rpy)[k]);
+        if (std::abs(out.imu_rpy[k]) > 360.0)
+          scans.fail((*rpy)[k].Mark(), scans.keyOf("imu_rpy"), "an angle beyond 360 deg");
+      }
+    }
   }
   scans.finish();
   return out;
@@ -393,6 +404,13 @@ void writeRobot(std::ostream& out, const RobotSpec& robot) {
   } else if (robot.scans.type == ScanSourceType::bag || robot.scans.type == ScanSourceType::mcap) {
     out << "      file: " << scalar(robot.scans.file) << "\n";
     out << "      topic: " << scalar(robot.scans.topic) << "\n";
+    if (!robot.scans.imu_topic.empty()) {
+      out << "      imu_topic: " << scalar(robot.scans.imu_topic) << "\n";
+      const auto& rpy = robot.scans.imu_rpy;
+      if (rpy != std::array<double, 3>{0.0, 0.0, 0.0})
+        out << "      imu_rpy: [" << exactText(rpy[0]) << ", " << exactText(rpy[1]) << ", "
+            << exactText(rpy[2]) << "]\n";
+    }
   }
 }
 

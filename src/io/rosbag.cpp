@@ -243,6 +243,22 @@ std::vector<StampedCloud> readBagClouds(const std::string& path, const std::stri
   return clouds;
 }
 
+std::vector<RawBagMessage> readBagMessages(const std::string& path, const std::string& topic,
+                                           std::string_view type, std::string_view md5sum) {
+  detail::BagFile bag(path);
+  const auto messages = topicMessages(bag, topic, {KnownType{type, md5sum}});
+  std::vector<RawBagMessage> out;
+  out.reserve(messages.size());
+  for (const auto& m : messages) {
+    const std::span<const char> bytes = bag.read(m);
+    RawBagMessage& raw = out.emplace_back();
+    raw.time = static_cast<double>(m.time) * 1e-9;
+    raw.bytes.assign(reinterpret_cast<const std::uint8_t*>(bytes.data()),
+                     reinterpret_cast<const std::uint8_t*>(bytes.data()) + bytes.size());
+  }
+  return out;
+}
+
 core::Trajectory readBagTrajectory(const std::string& path, const std::string& topic) {
   detail::BagFile bag(path);
   const auto messages =

@@ -314,6 +314,22 @@ core::PointCloud McapScanSource::scan(std::size_t i) const {
   return std::move(cloud->cloud);
 }
 
+std::vector<msg::Imu> readMcapImu(const std::string& path, const std::string& topic) {
+  io::McapReader file(path);
+  const auto messages = topicMessages(file, topic, {kImuType});
+  std::vector<msg::Imu> out;
+  out.reserve(messages.size());
+  for (std::size_t i = 0; i < messages.size(); ++i) {
+    const io::McapMessage m = file.read(messages[i]);
+    try {
+      out.push_back(decode<Imu>(m.data));
+    } catch (const core::Error& e) {
+      failMessage(path, topic, i, e.what());
+    }
+  }
+  return out;
+}
+
 std::string McapScanSource::describe() const {
   return "mcap " + path_ + " topic " + topic_;
 }

@@ -68,12 +68,14 @@ io::ScanSourceSpec exportBag(const io::ScanSource& source, const io::RobotSpec& 
   const std::string file = mcap ? "scans.mcap" : "scans.bag";
   Writer writer((dir / file).string());
   const double tilt_sigma = ImuModel{}.readingSigma();
+  bool with_imu = false;
   for (std::size_t i = 0; i < source.size(); ++i) {
     const double stamp = offset + source.stamp(i);
     // The IMU's reading of up with the scan, as the orientation of a
     // sensor_msgs/Imu (the simulated IMU sits at the LiDAR): before it, as a
     // driver's IMU at hundreds of Hz would be.
     if (const std::optional<Eigen::Vector3d> up = source.up(i)) {
+      with_imu = true;
       const msg::Imu imu = msg::imuOfUp(*up, tilt_sigma * tilt_sigma, {stamp, frame});
       if constexpr (mcap) {
         writer.writeImu(options.imu_topic, imu);
@@ -94,7 +96,8 @@ io::ScanSourceSpec exportBag(const io::ScanSource& source, const io::RobotSpec& 
   writer.close();
   return {.type = mcap ? io::ScanSourceType::mcap : io::ScanSourceType::bag,
           .file = dir.filename().string() + "/" + file,
-          .topic = options.cloud_topic};
+          .topic = options.cloud_topic,
+          .imu_topic = with_imu ? options.imu_topic : std::string()};
 }
 
 /// A byte-exact copy (a TUM file read and written again could differ in the last digits).

@@ -5,6 +5,7 @@
 
 #include <dcl/core/error.hpp>
 #include <dcl/io/pose_file.hpp>
+#include <dcl/ros/imu_readings.hpp>
 #include <dcl/ros/ros2_bag.hpp>
 #include <dcl/sim/lidar_model.hpp>
 #include <dcl/sim/sim_source.hpp>
@@ -230,8 +231,31 @@ std::string SimScanSource::describe() const {
 std::unique_ptr<io::ScanSource> openRobotScans(const io::DatasetSpec& spec, std::size_t robot,
                                                std::shared_ptr<const SimWorld> world) {
   const io::ScanSourceSpec& scans = spec.robots.at(robot).scans;
-  if (scans.type == io::ScanSourceType::mcap) {
-    return std::make_unique<ros2::McapScanSource>(spec.resolve(scans.file), scans.topic);
+  if (scans.type == io::ScanSourceType::mcap || scans.type == io::ScanSourceType::bag) {
+    const std::string file = spec.resolve(scans.file);
+    std::unique_ptr<io::ScanSource> source;
+    double origin = 0.0;
+    std::vector<msg::Imu> imu;
+    if (scans.type == io::ScanSourceType::mcap) {
+      auto mcap = std::make_unique<ros2::McapScanSource>(file, scans.topic);
+      origin = mcap->originStamp();
+      source = std::move(mcap);
+      if (!scans.imu_topic.empty()) imu = ros2::readMcapImu(file, scans.imu_topic);
+    } else {
+      auto bag = std::make_unique<io::BagScanSource>(file, scans.topic);
+      origin = bag->originStamp();
+      source = std::move(bag);
+      if (!scans.imu_topic.empty()) imu = ros1::readBagImu(file, scans.imu_topic);
+    }
+    if (scans.imu_topic.empty()) return source;
+    // The readings of up, as a live robot takes them (robot --imu): the one
+    // nearest each scan's stamp, within kImuMaxGap.
+    const Eigen::Matrix3d R_lidar_imu =
+        msg::rotationOfRpy(scans.imu_rpy[0], scans.imu_rpy[1], scans.imu_rpy[2]);
+    msg::UpReadings readings;
+    for (const msg::Imu& m : imu) (void)readings.add(m, R_lidar_imu);
+    return std::make_unique<msg::LevelledScanSource>(std::move(source), std::move(readings), origin,
+                                                     kImuMaxGap);
   }
   if (scans.type != io::ScanSourceType::sim) return io::openScanSource(spec, robot);
   if (!world) world = std::make_shared<const SimWorld>(spec);

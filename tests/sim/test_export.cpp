@@ -177,6 +177,18 @@ TEST(ExportImu, BagsCarryEachScansImuReadingAsAnOrientation) {
     ASSERT_TRUE(up.has_value());
     EXPECT_LT((*up - *source->up(i)).norm(), 1e-12) << i;
   }
+  // Read back as the exported dataset.yaml says (its imu_topic), both bags
+  // level each scan with the reading the simulated robot had.
+  for (const char* format : {"bag", "mcap"}) {
+    const io::DatasetSpec exported = io::readDataset((dir / format).string());
+    EXPECT_EQ(exported.robots[0].scans.imu_topic, "/imu") << format;
+    const auto scans = openRobotScans(exported, 0);
+    ASSERT_EQ(scans->size(), 3u);
+    for (std::size_t i = 0; i < 3; ++i) {
+      ASSERT_TRUE(scans->up(i).has_value()) << format << " " << i;
+      EXPECT_LT((*scans->up(i) - *source->up(i)).norm(), 1e-12) << format << " " << i;
+    }
+  }
 }
 
 TEST(ExportFormatNames, ParseBothWays) {

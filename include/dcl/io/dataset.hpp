@@ -15,6 +15,7 @@
 ///
 /// Paths inside dataset.yaml are relative to the dataset folder.
 
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -52,6 +53,11 @@ struct ScanSourceSpec {
   std::string times{};   ///< kitti: stamps one a line, s since start (relative); default none
   std::string file{};    ///< bag, mcap: the bag file (relative); default none
   std::string topic{};   ///< bag, mcap: the sensor_msgs/PointCloud2 topic; default none
+  /// bag, mcap: the robot's sensor_msgs/Imu topic, whose orientation levels
+  /// each scan (ScanSource::up); default none.
+  std::string imu_topic{};
+  /// deg: the IMU frame's roll, pitch, yaw in the LiDAR frame; default 0, 0, 0.
+  std::array<double, 3> imu_rpy{0.0, 0.0, 0.0};
 };
 
 /// The poses of a robot's own front-end (LIO-SAM, FAST-LIO2, wheel and IMU

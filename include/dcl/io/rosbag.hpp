@@ -16,6 +16,7 @@
 /// row_step, width and height are honoured and checked against the data length;
 /// an organised cloud is read row by row into an unorganised one.
 
+#include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
@@ -91,6 +92,19 @@ class BagCloudReader {
 /// Every scan of `topic` in `path` (see BagCloudReader).
 std::vector<StampedCloud> readBagClouds(const std::string& path, const std::string& topic,
                                         const BagCloudOptions& options = {});
+
+/// One message as recorded: its record time and its serialised bytes.
+struct RawBagMessage {
+  double time = 0.0;                  ///< record time, s since the epoch
+  std::vector<std::uint8_t> bytes{};  ///< the ROS 1 serialisation, for a decoder of its type
+};
+
+/// The messages of `topic`, in time order, for a decoder of type `type` (e.g.
+/// "sensor_msgs/Imu") whose definition has MD5 sum `md5sum`. Throws
+/// core::FileError naming the bag and the topic when the bag cannot be read,
+/// the topic is missing, or it holds another type or another definition.
+std::vector<RawBagMessage> readBagMessages(const std::string& path, const std::string& topic,
+                                           std::string_view type, std::string_view md5sum);
 
 /// The poses T_world_body of `topic` (nav_msgs/Odometry, geometry_msgs/PoseStamped or
 /// geometry_msgs/PoseWithCovarianceStamped), stamped from their headers, in bag

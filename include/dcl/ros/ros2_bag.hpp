@@ -73,6 +73,10 @@ std::vector<io::StampedCloud> readMcapClouds(const std::string& path, const std:
 /// the file, the topic and the message index.
 core::Trajectory readMcapTrajectory(const std::string& path, const std::string& topic);
 
+/// The sensor_msgs/Imu messages of `topic`, in log-time order. Throws
+/// core::FileError naming the file, the topic and the message index.
+std::vector<msg::Imu> readMcapImu(const std::string& path, const std::string& topic);
+
 /// The PointCloud2 messages of one MCAP topic as a robot's scans: stamps are the
 /// header stamps relative to the first message's. Cheapest in order (an
 /// earlier scan than the last one reopens the file); calls are serialised by a mutex.

@@ -110,10 +110,14 @@ class SimScanSource final : public io::ScanSource {
   std::size_t robot_;
 };
 
+/// s between a recorded scan's stamp and the IMU reading that levels it, at most.
+inline constexpr double kImuMaxGap = 0.05;
+
 /// The scans of robot `robot` of any dataset: regenerated for a simulated robot
 /// (from `world`, built on first need when null and the robot needs it), read
-/// from disk otherwise (ros2::McapScanSource for an MCAP file, io::openScanSource
-/// for the rest).
+/// from disk otherwise (ros2::McapScanSource for an MCAP file, io::BagScanSource
+/// for a ROS 1 bag, io::openScanSource for the rest); a bag's scans with an
+/// `imu_topic` are levelled by its readings (msg::LevelledScanSource).
 std::unique_ptr<io::ScanSource> openRobotScans(const io::DatasetSpec& spec, std::size_t robot,
                                                std::shared_ptr<const SimWorld> world = nullptr);
 
