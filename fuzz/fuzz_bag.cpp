@@ -1,5 +1,5 @@
 // libFuzzer target: ROS1 bags (the record layer, bz2 and lz4 chunks, and the
-// PointCloud2, Odometry and PoseStamped messages in them). A reader may refuse
+// PointCloud2, Odometry, PoseStamped and Imu messages in them). A reader may refuse
 // input only with core::FileError. The input is handed over as an in-memory file.
 #include <cstdint>
 #include <set>
@@ -7,6 +7,7 @@
 
 #include <dcl/core/error.hpp>
 #include <dcl/io/rosbag.hpp>
+#include <dcl/ros/imu_readings.hpp>
 
 #include "fuzz_input_file.hpp"
 
@@ -28,6 +29,8 @@ void readAll(const std::string& path) {
           } catch (const dcl::core::FileError&) {
           }
         }
+      } else if (topic.type == "sensor_msgs/Imu") {
+        (void)dcl::ros1::readBagImu(path, topic.name);
       } else {
         (void)dcl::io::readBagTrajectory(path, topic.name);
       }

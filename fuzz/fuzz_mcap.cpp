@@ -1,6 +1,6 @@
 // libFuzzer target: MCAP files (the records, the summary and its indexes,
 // uncompressed, zstd and lz4 chunks, CRCs) and the ROS 2 PointCloud2,
-// Odometry and PoseStamped messages in them. A reader may refuse input only
+// Odometry, PoseStamped and Imu messages in them. A reader may refuse input only
 // with core::FileError. The input is handed over as an in-memory file.
 #include <cstdint>
 #include <set>
@@ -40,6 +40,8 @@ void readTopics(const std::string& path) {
           } catch (const dcl::core::FileError&) {
           }
         }
+      } else if (topic.type == "sensor_msgs/msg/Imu") {
+        (void)dcl::ros2::readMcapImu(path, topic.name);
       } else {
         (void)dcl::ros2::readMcapTrajectory(path, topic.name);
       }

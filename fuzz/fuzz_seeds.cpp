@@ -322,6 +322,8 @@ void writeMcapSeeds(const std::filesystem::path& dir, const dcl::core::PointClou
       bag.writeCloud("/points", 100.0 + k, few, "lidar");
       bag.writeOdometry("/odom", 100.0 + k, T, "odom", "base_link");
       bag.writePose("/pose", 100.5 + k, T, "map");
+      bag.writeImu("/imu",
+                   dcl::msg::imuOfUp(Eigen::Vector3d(0.01, 0.02, 1.0), 1e-6, {100.0 + k, "imu"}));
     }
     bag.close();
   }
@@ -395,7 +397,7 @@ int main(int argc, char** argv) {
           comm::encode(m));
     ++sequence;
   }
-  // A bag as dcl-slam exports one: a few points of the scan, and odometry.
+  // A bag as dcl-slam exports one: a few points of the scan, IMU readings and odometry.
   dcl::io::BagWriter bag((dir / "bag" / "export.bag").string());
   dcl::core::PointCloud few;
   for (std::size_t i = 0; i < scan.size(); i += scan.size() / 16) {
@@ -407,6 +409,10 @@ int main(int argc, char** argv) {
     bag.writeOdometry("/odom", 100.0 + k,
                       dcl::core::makePose(Eigen::Vector3d(k, 0, 0), Eigen::Quaterniond::Identity()),
                       "odom", "base_link");
+    const dcl::ros1::MessageType& imu = dcl::ros1::messageType<dcl::msg::Imu>();
+    bag.writeSerialised("/imu", 100.0 + k, imu.name, imu.md5sum, imu.definition,
+                        dcl::ros1::encode(dcl::msg::imuOfUp(Eigen::Vector3d(0.01, 0.02, 1.0), 1e-6,
+                                                            {100.0 + k, "imu"})));
   }
   bag.close();
   std::filesystem::copy_file(std::string(DCL_DATA_DIR) + "/rosbags/evo_tf_example.bag",
