@@ -421,8 +421,9 @@ struct LiveRobot {
   };
   std::optional<Waiting> waiting;
   /// The IMU's readings of up in the LiDAR frame (ros.imu), by stamp on the
-  /// node's clock, the last kImuWindow seconds of them.
-  static constexpr double kImuWindow = 2.0;
+  /// node's clock, the last kImuWindow seconds of them (longer than a scan
+  /// waits behind a busy front-end; 4,000 readings of a 400 Hz IMU).
+  static constexpr double kImuWindow = 10.0;
   Eigen::Matrix3d R_lidar_imu;
   msg::UpReadings imu_readings;
   std::size_t imu_received = 0;             ///< IMU messages
