@@ -719,9 +719,10 @@ struct LiveRobot {
     ros_node.template advertise<msg::PointCloud2>(ros.map_topic, Qos::transient_local);
     ros_node.template advertise<msg::PointCloud2>(ros.whole_map_topic, Qos::transient_local);
     ros_node.template advertise<msg::MarkerArray>(ros.loops_topic, Qos::transient_local);
-    fmt::print("robot {}: reading {} on {}; publishing {}, {}, {}, {}, {} and /tf\n", o.robot,
-               ros.points, Middleware::where(ros), ros.odometry_topic, ros.path_topic,
-               ros.map_topic, ros.whole_map_topic, ros.loops_topic);
+    fmt::print("robot {}: reading {} on {}{}; publishing {}, {}, {}, {}, {} and /tf\n", o.robot,
+               ros.points, Middleware::where(ros),
+               ros.imu.empty() ? std::string() : ", its IMU on " + ros.imu, ros.odometry_topic,
+               ros.path_topic, ros.map_topic, ros.whole_map_topic, ros.loops_topic);
     std::fflush(stdout);
     const auto tick = std::chrono::milliseconds(static_cast<std::int64_t>(kTickPeriod * 1000.0));
     while (stopSignal() == 0) {
