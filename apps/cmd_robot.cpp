@@ -28,6 +28,7 @@
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
+#include <spdlog/spdlog.h>
 
 #include <dcl/comm/dds_transport.hpp>
 #include <dcl/core/error.hpp>
@@ -418,6 +419,7 @@ struct LiveRobot {
     double stamp = 0.0;
     core::PointCloud scan;
     double arrived = 0.0;
+    bool held_for_imu = false;  ///< taken but for its IMU reading, still on its way
   };
   std::optional<Waiting> waiting;
   /// The IMU's readings of up in the LiDAR frame (ros.imu), by stamp on the
@@ -520,6 +522,9 @@ struct LiveRobot {
       last_refusal = e.what();
       return;
     }
+    // A scan held only for its IMU reading goes now, without waiting longer:
+    // the next scan is here, and the reading was not.
+    if (waiting && waiting->held_for_imu) takeWaiting(/*newer_scan=*/true);
     if (waiting) ++dropped;
     waiting = Waiting{nodeStamp(m.header.stamp), std::move(cloud), unixNow()};
   }
@@ -528,7 +533,13 @@ struct LiveRobot {
     ++imu_received;
     const double stamp = nodeStamp(m.header.stamp);
     if (!imu_readings.add(m, R_lidar_imu, stamp - m.header.stamp)) {
-      ++imu_without_orientation;
+      if (++imu_without_orientation == 1) {
+        spdlog::warn(
+            "robot {}: the IMU on {} sends no orientation (orientation_covariance[0] = -1): its "
+            "readings level nothing; an orientation filter (e.g. imu_filter_madgwick) or the "
+            "driver's own gives one",
+            o.robot, ros.imu);
+      }
       return;
     }
     imu_readings.dropBefore(stamp - kImuWindow);
@@ -542,7 +553,7 @@ struct LiveRobot {
   /// The waiting scan through the front-end when it can go: at once with the
   /// built-in odometry, once the external one reaches its stamp otherwise
   /// (dropped and counted after ros.odometry_wait).
-  void takeWaiting() {
+  void takeWaiting(bool newer_scan = false) {
     if (!waiting) return;
     if (external != nullptr && !external->reaches(waiting->stamp)) {
       if (unixNow() - waiting->arrived > ros.odometry_wait) {
@@ -552,14 +563,27 @@ struct LiveRobot {
       return;
     }
     // Its IMU reading may still be on its way (another connection): the scan
-    // waits for a reading at or after its stamp, ros.imu_max_gap at most.
-    if (!ros.imu.empty() && !imu_readings.reaches(waiting->stamp) &&
-        unixNow() - waiting->arrived < ros.imu_max_gap)
-      return;
+    // waits for a reading at or after its stamp, ros.imu_max_gap at most,
+    // and only while the IMU talks at all.
+    waiting->held_for_imu = !newer_scan && !ros.imu.empty() && imu_received > 0 &&
+                            !imu_readings.reaches(waiting->stamp) &&
+                            unixNow() - waiting->arrived < ros.imu_max_gap;
+    if (waiting->held_for_imu) return;
     std::optional<Eigen::Vector3d> up;
     if (!ros.imu.empty()) {
       up = imu_readings.nearest(waiting->stamp, ros.imu_max_gap);
-      if (!up) ++scans_without_imu;
+      if (!up && ++scans_without_imu == 1) {
+        if (imu_readings.newest()) {
+          spdlog::warn(
+              "robot {}: no reading on {} within {} s of the scan stamped {:.3f} s (the newest at "
+              "{:.3f} s, {} held): are the IMU and the LiDAR stamped on one clock?",
+              o.robot, ros.imu, ros.imu_max_gap, rosStamp(waiting->stamp),
+              rosStamp(*imu_readings.newest()), imu_readings.size());
+        } else {
+          spdlog::warn("robot {}: no reading on {} yet: scans go unlevelled until one comes",
+                       o.robot, ros.imu);
+        }
+      }
     }
     node.addScan(waiting->stamp, waiting->scan, up);
     waiting.reset();
@@ -812,6 +836,13 @@ void runLiveRobot(const RobotOptions& o, const AppConfig& config) {
   if (live.refused > 0) {
     std::fprintf(stderr, "dcl-slam robot %s: %zu clouds on %s were unreadable (the last: %s)\n",
                  o.robot.c_str(), live.refused, live.ros.points.c_str(), live.last_refusal.c_str());
+  }
+  if (live.scans_without_imu > 0 || live.imu_without_orientation > 0) {
+    std::fprintf(stderr,
+                 "dcl-slam robot %s: %zu of %zu scans went unlevelled (no IMU reading on %s within "
+                 "%g s); %zu of %zu IMU messages had no orientation\n",
+                 o.robot.c_str(), live.scans_without_imu, live.frames, live.ros.imu.c_str(),
+                 live.ros.imu_max_gap, live.imu_without_orientation, live.imu_received);
   }
   for (const auto& [topic, refusals] : live.ros_node.refused()) {
     std::fprintf(stderr, "dcl-slam robot %s: %zu messages on %s were refused (the last: %s)\n",

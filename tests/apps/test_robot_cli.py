@@ -390,6 +390,36 @@ class Ros2Robot(unittest.TestCase):
                         "--est", mapped, "--format", "tum", "--align", "se3", "--json")
         self.assertLess(json.loads(ate)["translation_m"]["rmse"], 0.3)
 
+    def test_a_live_robot_whose_imu_is_silent_takes_every_scan_and_says_so(self):
+        # `robot --imu` on a topic nobody publishes: the scans go through
+        # unlevelled at once (none held back for a reading that never comes),
+        # and the robot says so while it runs and when it stops.
+        out = os.path.join(self.tmp.name, "silent_imu")
+        topic = f"/dcl_test_{os.getpid()}/silent"
+        common = ["--ros-domain", "183", "--interface", "lo", "--points", topic + "/points"]
+        robot = subprocess.Popen(
+            [DCL_SLAM, "robot", "--ros2", "--robot", "a", "--id", "0", "--out", out,
+             "--domain", "184", "--swarm", f"ros2-imu-{os.getpid()}", "--imu", topic + "/imu",
+             *common],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.addCleanup(lambda: robot.poll() is None and robot.kill())
+        run("play", "--dataset", self.dataset, "--robot", "a", "--rate", "2", *common,
+            timeout=120)
+        time.sleep(2)
+        robot.send_signal(signal.SIGINT)
+        _, err = robot.communicate(timeout=60)
+        self.assertEqual(robot.returncode, 128 + signal.SIGINT, err)
+        with open(os.path.join(out, "a", "robot.json")) as f:
+            report = json.load(f)
+        counters = report["counters"]
+        self.assertGreaterEqual(counters["scans_received"], self.SCANS - 5)
+        self.assertEqual(report["frames"] + counters["scans_dropped"], counters["scans_received"])
+        self.assertLessEqual(counters["scans_dropped"], 0.05 * self.SCANS)
+        self.assertEqual(counters["imu_received"], 0)
+        self.assertEqual(counters["scans_without_imu"], report["frames"])
+        self.assertIn(f"no reading on {topic}/imu yet", err)
+        self.assertIn(f"{report['frames']} of {report['frames']} scans went unlevelled", err)
+
     def test_a_live_robot_takes_its_poses_from_an_external_front_end(self):
         # `play --odometry` publishes the ground truth before each scan: a
         # perfect front-end, so the trajectory is the ground truth's keyframes.

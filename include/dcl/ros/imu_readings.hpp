@@ -35,6 +35,11 @@ class UpReadings {
   /// Forgets the readings older than `stamp`.
   void dropBefore(double stamp);
   [[nodiscard]] std::size_t size() const { return readings_.size(); }
+  /// The newest reading's stamp, if any.
+  [[nodiscard]] std::optional<double> newest() const {
+    if (readings_.empty()) return std::nullopt;
+    return readings_.back().first;
+  }
 
  private:
   std::deque<std::pair<double, Eigen::Vector3d>> readings_;
