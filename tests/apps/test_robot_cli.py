@@ -294,6 +294,25 @@ class Ros2Robot(unittest.TestCase):
     def tearDownClass(cls):
         cls.tmp.cleanup()
 
+    def live_robot(self, out, ros_domain, domain, swarm, *options):
+        """`robot --ros2` (robot a) in the background, killed if the test fails."""
+        robot = subprocess.Popen(
+            [DCL_SLAM, "robot", "--ros2", "--robot", "a", "--id", "0", "--out", out,
+             "--ros-domain", ros_domain, "--interface", "lo", "--domain", domain, "--swarm",
+             f"{swarm}-{os.getpid()}", *options],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.addCleanup(lambda: robot.poll() is None and robot.kill())
+        return robot
+
+    def stop_live_robot(self, robot, out):
+        """SIGINT 2 s after the last scan; its stderr and robot.json."""
+        time.sleep(2)
+        robot.send_signal(signal.SIGINT)
+        _, err = robot.communicate(timeout=60)
+        self.assertEqual(robot.returncode, 128 + signal.SIGINT, err)
+        with open(os.path.join(out, "a", "robot.json")) as f:
+            return err, json.load(f)
+
     def test_two_live_robots_are_as_accurate_as_a_run_of_the_same_scans(self):
         # `swarm --ros2`: each robot a live `robot --ros2` process, fed by its own
         # `play` process over ROS 2 on the swarm clock with the dataset's stamps.
@@ -351,25 +370,16 @@ class Ros2Robot(unittest.TestCase):
     def test_a_live_robot_tracks_the_scans_it_is_sent(self):
         out = os.path.join(self.tmp.name, "out")
         topic = f"/dcl_test_{os.getpid()}/points"
-        common = ["--ros-domain", "173", "--interface", "lo", "--points", topic]
-        robot = subprocess.Popen(
-            [DCL_SLAM, "robot", "--ros2", "--robot", "a", "--id", "0", "--out", out,
-             "--domain", "174", "--swarm", f"ros2-test-{os.getpid()}", *common],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        self.addCleanup(lambda: robot.poll() is None and robot.kill())
+        robot = self.live_robot(out, "173", "174", "ros2-test", "--points", topic)
         _, played, _ = run("play", "--dataset", self.dataset, "--robot", "a", "--rate", "2",
-                           *common, timeout=120)
+                           "--ros-domain", "173", "--interface", "lo", "--points", topic,
+                           timeout=120)
         # "scan i stamped START + (t_i - FIRST) / RATE"
         words = played.strip().splitlines()[-1].replace("(", " ").replace(")", " ").split()
         start, first = float(words[words.index("stamped") + 1]), float(words[words.index("-") + 1])
         self.assertIn("1 subscriber", played)
-        time.sleep(2)
-        robot.send_signal(signal.SIGINT)
-        _, err = robot.communicate(timeout=60)
-        self.assertEqual(robot.returncode, 128 + signal.SIGINT, err)
+        err, report = self.stop_live_robot(robot, out)
         self.assertIn("stopped by signal", err)
-        with open(os.path.join(out, "a", "robot.json")) as f:
-            report = json.load(f)
         counters = report["counters"]
         # Best effort on loopback: a scan may be lost, none may be unreadable,
         # and every scan the robot took went through the front-end.
@@ -396,21 +406,11 @@ class Ros2Robot(unittest.TestCase):
         # and the robot says so while it runs and when it stops.
         out = os.path.join(self.tmp.name, "silent_imu")
         topic = f"/dcl_test_{os.getpid()}/silent"
-        common = ["--ros-domain", "183", "--interface", "lo", "--points", topic + "/points"]
-        robot = subprocess.Popen(
-            [DCL_SLAM, "robot", "--ros2", "--robot", "a", "--id", "0", "--out", out,
-             "--domain", "184", "--swarm", f"ros2-imu-{os.getpid()}", "--imu", topic + "/imu",
-             *common],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        self.addCleanup(lambda: robot.poll() is None and robot.kill())
-        run("play", "--dataset", self.dataset, "--robot", "a", "--rate", "2", *common,
-            timeout=120)
-        time.sleep(2)
-        robot.send_signal(signal.SIGINT)
-        _, err = robot.communicate(timeout=60)
-        self.assertEqual(robot.returncode, 128 + signal.SIGINT, err)
-        with open(os.path.join(out, "a", "robot.json")) as f:
-            report = json.load(f)
+        robot = self.live_robot(out, "183", "184", "ros2-imu", "--points", topic + "/points",
+                                "--imu", topic + "/imu")
+        run("play", "--dataset", self.dataset, "--robot", "a", "--rate", "2", "--ros-domain",
+            "183", "--interface", "lo", "--points", topic + "/points", timeout=120)
+        err, report = self.stop_live_robot(robot, out)
         counters = report["counters"]
         self.assertGreaterEqual(counters["scans_received"], self.SCANS - 5)
         self.assertEqual(report["frames"] + counters["scans_dropped"], counters["scans_received"])
@@ -425,23 +425,14 @@ class Ros2Robot(unittest.TestCase):
         # perfect front-end, so the trajectory is the ground truth's keyframes.
         out = os.path.join(self.tmp.name, "external")
         topic = f"/dcl_test_{os.getpid()}/ext"
-        common = ["--ros-domain", "175", "--interface", "lo", "--points", topic + "/points"]
-        robot = subprocess.Popen(
-            [DCL_SLAM, "robot", "--ros2", "--robot", "a", "--id", "0", "--out", out,
-             "--domain", "176", "--swarm", f"ros2-ext-{os.getpid()}", "--odometry",
-             topic + "/odom", *common],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        self.addCleanup(lambda: robot.poll() is None and robot.kill())
+        robot = self.live_robot(out, "175", "176", "ros2-ext", "--points", topic + "/points",
+                                "--odometry", topic + "/odom")
         _, played, _ = run("play", "--dataset", self.dataset, "--robot", "a", "--rate", "2",
-                           "--odometry", topic + "/odom", *common, timeout=120)
+                           "--odometry", topic + "/odom", "--ros-domain", "175", "--interface",
+                           "lo", "--points", topic + "/points", timeout=120)
         words = played.strip().splitlines()[-1].replace("(", " ").replace(")", " ").split()
         start, first = float(words[words.index("stamped") + 1]), float(words[words.index("-") + 1])
-        time.sleep(2)
-        robot.send_signal(signal.SIGINT)
-        _, err = robot.communicate(timeout=60)
-        self.assertEqual(robot.returncode, 128 + signal.SIGINT, err)
-        with open(os.path.join(out, "a", "robot.json")) as f:
-            report = json.load(f)
+        _, report = self.stop_live_robot(robot, out)
         counters = report["counters"]
         self.assertGreaterEqual(counters["odometry_received"], self.SCANS - 5)
         self.assertEqual(counters["odometry_refused"], 0)
