@@ -268,14 +268,20 @@ void writeConfigSeeds(const std::filesystem::path& dir) {
   write(dir, "dataset_export.yaml", dcl::io::datasetYaml(spec));
 }
 
-/// The ROS 2 target's seeds: a scan as a driver publishes it, and each message a robot publishes.
-void writeRos2Seeds(const std::filesystem::path& dir, const dcl::core::PointCloud& scan) {
-  using namespace dcl::ros2;
+/// About `n` points of `scan`, evenly through it, with their intensities.
+dcl::core::PointCloud fewPoints(const dcl::core::PointCloud& scan, std::size_t n) {
   dcl::core::PointCloud few;
-  for (std::size_t i = 0; i < scan.size(); i += scan.size() / 64) {
+  for (std::size_t i = 0; i < scan.size(); i += scan.size() / n) {
     few.points.push_back(scan.points[i]);
     few.intensity.push_back(scan.intensity.empty() ? 0.0F : scan.intensity[i]);
   }
+  return few;
+}
+
+/// The ROS 2 target's seeds: a scan as a driver publishes it, and each message a robot publishes.
+void writeRos2Seeds(const std::filesystem::path& dir, const dcl::core::PointCloud& scan) {
+  using namespace dcl::ros2;
+  const dcl::core::PointCloud few = fewPoints(scan, 64);
   write(dir, "cloud.cdr", encode(toPointCloud2(few, {100.5, "velodyne"})));
   Odometry odometry;
   odometry.header = {100.5, "odom"};
@@ -333,11 +339,7 @@ void writeMcapSeeds(const std::filesystem::path& dir, const dcl::core::PointClou
 void writeRos1Seeds(const std::filesystem::path& dir, const dcl::core::PointCloud& scan) {
   namespace ros1 = dcl::ros1;
   namespace msg = dcl::msg;
-  dcl::core::PointCloud few;
-  for (std::size_t i = 0; i < scan.size(); i += scan.size() / 64) {
-    few.points.push_back(scan.points[i]);
-    few.intensity.push_back(scan.intensity.empty() ? 0.0F : scan.intensity[i]);
-  }
+  const dcl::core::PointCloud few = fewPoints(scan, 64);
   write(dir, "cloud.ros1", ros1::encode(msg::toPointCloud2(few, {100.5, "velodyne"}), 7));
   msg::Odometry odometry;
   odometry.header = {100.5, "odom"};
@@ -367,6 +369,48 @@ void writeRos1Seeds(const std::filesystem::path& dir, const dcl::core::PointClou
   write(dir, "markers.ros1", ros1::encode(markers));
 }
 
+/// Every message kind of the swarm's wire format, encoded.
+void writeMessageSeeds(const std::filesystem::path& dir,
+                       const std::vector<std::uint8_t>& descriptor,
+                       const std::vector<std::uint8_t>& small_cloud) {
+  std::uint64_t sequence = 1;
+  for (const comm::Body& body : bodies(descriptor, small_cloud)) {
+    const comm::Message m{header(sequence), body};
+    write(dir, std::string(comm::name(m.kind())) + "_" + std::to_string(sequence), comm::encode(m));
+    ++sequence;
+  }
+}
+
+/// A bag as dcl-slam exports one (a few points of the scan, IMU readings and
+/// odometry), and a real one of tf messages.
+void writeBagSeeds(const std::filesystem::path& dir, const dcl::core::PointCloud& few) {
+  dcl::io::BagWriter bag((dir / "export.bag").string());
+  for (int k = 0; k < 2; ++k) {
+    bag.writeCloud("/points", 100.0 + k, few, "lidar");
+    bag.writeOdometry("/odom", 100.0 + k,
+                      dcl::core::makePose(Eigen::Vector3d(k, 0, 0), Eigen::Quaterniond::Identity()),
+                      "odom", "base_link");
+    const dcl::ros1::MessageType& imu = dcl::ros1::messageType<dcl::msg::Imu>();
+    bag.writeSerialised("/imu", 100.0 + k, imu.name, imu.md5sum, imu.definition,
+                        dcl::ros1::encode(dcl::msg::imuOfUp(Eigen::Vector3d(0.01, 0.02, 1.0), 1e-6,
+                                                            {100.0 + k, "imu"})));
+  }
+  bag.close();
+  std::filesystem::copy_file(std::string(DCL_DATA_DIR) + "/rosbags/evo_tf_example.bag",
+                             dir / "evo_tf_example.bag",
+                             std::filesystem::copy_options::overwrite_existing);
+}
+
+/// What Foxglove Studio sends a server it watches.
+void writeVizSeeds(const std::filesystem::path& dir) {
+  write(
+      dir, "subscribe.json",
+      std::string(
+          R"({"op":"subscribe","subscriptions":[{"id":0,"channelId":1},{"id":1,"channelId":4}]})"));
+  write(dir, "unsubscribe.json", std::string(R"({"op":"unsubscribe","subscriptionIds":[0,1]})"));
+  write(dir, "other.json", std::string(R"({"op":"getParameters","parameterNames":[],"id":"x"})"));
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -390,47 +434,14 @@ int main(int argc, char** argv) {
   writePoseSeeds(dir / "poses");
   writeCloudFileSeeds(dir, scan);
   writeKittiScanSeeds(dir / "kitti_scan");
-  std::uint64_t sequence = 1;
-  for (const comm::Body& body : bodies(descriptor, small_cloud)) {
-    const comm::Message m{header(sequence), body};
-    write(dir / "message", std::string(comm::name(m.kind())) + "_" + std::to_string(sequence),
-          comm::encode(m));
-    ++sequence;
-  }
-  // A bag as dcl-slam exports one: a few points of the scan, IMU readings and odometry.
-  dcl::io::BagWriter bag((dir / "bag" / "export.bag").string());
-  dcl::core::PointCloud few;
-  for (std::size_t i = 0; i < scan.size(); i += scan.size() / 16) {
-    few.points.push_back(scan.points[i]);
-    few.intensity.push_back(scan.intensity.empty() ? 0.0F : scan.intensity[i]);
-  }
-  for (int k = 0; k < 2; ++k) {
-    bag.writeCloud("/points", 100.0 + k, few, "lidar");
-    bag.writeOdometry("/odom", 100.0 + k,
-                      dcl::core::makePose(Eigen::Vector3d(k, 0, 0), Eigen::Quaterniond::Identity()),
-                      "odom", "base_link");
-    const dcl::ros1::MessageType& imu = dcl::ros1::messageType<dcl::msg::Imu>();
-    bag.writeSerialised("/imu", 100.0 + k, imu.name, imu.md5sum, imu.definition,
-                        dcl::ros1::encode(dcl::msg::imuOfUp(Eigen::Vector3d(0.01, 0.02, 1.0), 1e-6,
-                                                            {100.0 + k, "imu"})));
-  }
-  bag.close();
-  std::filesystem::copy_file(std::string(DCL_DATA_DIR) + "/rosbags/evo_tf_example.bag",
-                             dir / "bag" / "evo_tf_example.bag",
-                             std::filesystem::copy_options::overwrite_existing);
+  writeMessageSeeds(dir / "message", descriptor, small_cloud);
+  const dcl::core::PointCloud few = fewPoints(scan, 16);
+  writeBagSeeds(dir / "bag", few);
   writeConfigSeeds(dir / "config");
   writeRos2Seeds(dir / "ros2", scan);
   writeRos1Seeds(dir / "ros1", scan);
   writeMcapSeeds(dir / "mcap", few);
-  // What Foxglove Studio sends a server it watches.
-  write(
-      dir / "viz", "subscribe.json",
-      std::string(
-          R"({"op":"subscribe","subscriptions":[{"id":0,"channelId":1},{"id":1,"channelId":4}]})"));
-  write(dir / "viz", "unsubscribe.json",
-        std::string(R"({"op":"unsubscribe","subscriptionIds":[0,1]})"));
-  write(dir / "viz", "other.json",
-        std::string(R"({"op":"getParameters","parameterNames":[],"id":"x"})"));
+  writeVizSeeds(dir / "viz");
   std::printf("seeds written to %s\n", dir.c_str());
   return 0;
 }
