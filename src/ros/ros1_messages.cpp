@@ -264,21 +264,10 @@ class Reader : public Place {
   /// geometry_msgs/Pose, or Transform: `position` and `orientation` name the parts.
   Eigen::Isometry3d getPose(std::string_view position, std::string_view orientation) {
     const Eigen::Vector3d t = getVector(position);
-    Eigen::Quaterniond q;
-    q.x() = get<double>(orientation);
-    q.y() = get<double>(orientation);
-    q.z() = get<double>(orientation);
-    q.w() = get<double>(orientation);
+    Eigen::Quaterniond q = getQuaternion(orientation);
     if (!t.allFinite()) fail(position, "a value is not finite");
-    // As the ROS 2 codec: drivers send quaternions a little off unit norm;
-    // none send a zero one on purpose.
-    const double norm = q.norm();
-    if (!std::isfinite(norm)) fail(orientation, "a value is not finite");
-    if (std::abs(norm - 1.0) > 1e-2) {
-      fail(orientation, fmt::format("the norm is {}, not 1", norm));
-    }
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-    T.linear() = q.normalized().toRotationMatrix();
+    T.linear() = checkedRotation(q, orientation).toRotationMatrix();
     T.translation() = t;
     return T;
   }
@@ -291,6 +280,16 @@ class Reader : public Place {
     q.z() = get<double>(field);
     q.w() = get<double>(field);
     return q;
+  }
+
+  /// `q` normalised, refused unless its norm is within 1 % of 1: as the ROS 2
+  /// codec, drivers send quaternions a little off unit norm; none send a zero
+  /// one on purpose.
+  Eigen::Quaterniond checkedRotation(const Eigen::Quaterniond& q, std::string_view field) const {
+    const double norm = q.norm();
+    if (!std::isfinite(norm)) fail(field, "a value is not finite");
+    if (std::abs(norm - 1.0) > 1e-2) fail(field, fmt::format("the norm is {}, not 1", norm));
+    return q.normalized();
   }
 
   Eigen::Matrix3d getCovariance3(std::string_view field) {
@@ -384,14 +383,8 @@ void read(Reader& in, msg::Imu& m) {
   m.header = in.getHeader();
   m.orientation = in.getQuaternion("orientation");
   m.orientation_covariance = in.getCovariance3("orientation_covariance");
-  if (m.hasOrientation()) {  // an estimate: checked as a pose's orientation is
-    const double norm = m.orientation.norm();
-    if (!std::isfinite(norm)) in.fail("orientation", "a value is not finite");
-    if (std::abs(norm - 1.0) > 1e-2) {
-      in.fail("orientation", fmt::format("the norm is {}, not 1", norm));
-    }
-    m.orientation.normalize();
-  }
+  // An estimate is checked as a pose's orientation is.
+  if (m.hasOrientation()) m.orientation = in.checkedRotation(m.orientation, "orientation");
   m.angular_velocity = in.getVector("angular_velocity");
   m.angular_velocity_covariance = in.getCovariance3("angular_velocity_covariance");
   m.linear_acceleration = in.getVector("linear_acceleration");
