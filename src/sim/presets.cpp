@@ -62,16 +62,32 @@ Recipe campusRecipe(int robots) {
           [](const PresetOptions& o, int n) { return campusRoutes(n, o.seed); }};
 }
 
-/// The demo: three VLP-16 robots on loops around 50 m blocks, about 180 m
-/// each. VLP-16 scans are a quarter of an HDL-64's rays, which keeps the whole
-/// swarm (simulation, odometry, place recognition, DGS) inside two minutes on
-/// two cores; loops give every robot its own loop closure, and the block
-/// layout gives a head-on and a same-direction inter-robot overlap.
-std::vector<Route> demoRoutes(const PresetOptions& options, int robots) {
+/// Small and fast: three VLP-16 robots on loops around 50 m blocks, about
+/// 180 m each. VLP-16 scans are a quarter of an HDL-64's rays, which keeps the
+/// whole swarm quick; loops give every robot its own loop closure, and the
+/// block layout gives a head-on and a same-direction inter-robot overlap.
+std::vector<Route> smallRoutes(const PresetOptions& options, int robots) {
   CampusRouteConfig config;
   config.block_pitch = 50.0;
   config.u_route_share = 0.0;
   config.min_speed = 1.8;
+  return campusRoutes(robots, options.seed, config);
+}
+
+/// The demo: three cars with a VLP-16 each on the roof (KITTI's height), every
+/// one on a 600 m loop around a city block of its own at 7-8 m/s, the blocks
+/// one above the other, so that each car drives a street with its neighbours
+/// the same way (the middle one with both), a few seconds apart. At a car's
+/// speed the odometry drifts a decimetre or two over the loop; each car's own
+/// loop closure and the loops with its neighbours take most of it out, and
+/// the loops with the neighbours put the three in one frame and one map.
+std::vector<Route> demoRoutes(const PresetOptions& options, int robots) {
+  CampusRouteConfig config;
+  config.block_pitch = 150.0;
+  config.u_route_share = 0.0;
+  config.min_speed = 7.0;
+  config.max_speed = 8.0;
+  config.columns = 1;
   return campusRoutes(robots, options.seed, config);
 }
 
@@ -90,8 +106,10 @@ const std::vector<Recipe>& recipes() {
       {"aliasing-3", "3 robots along a corridor of identical blocks (perceptual aliasing), VLP-16",
        "aliasing", "vlp16", kUgvMountHeight, 3, false,
        [](const PresetOptions& o, int n) { return aliasingRoutes(n, o.seed); }, false},
-      {"demo", "small and fast: 3 robots on ~180 m campus loops with overlaps, VLP-16", "campus",
-       "vlp16", kUgvMountHeight, 3, false, demoRoutes},
+      {"small-3", "small and fast: 3 robots on ~180 m campus loops with overlaps, VLP-16", "campus",
+       "vlp16", kUgvMountHeight, 3, false, smallRoutes},
+      {"demo", "the built-in demo: 3 cars on 600 m loops around city blocks in a column, VLP-16",
+       "city", "vlp16", kKittiMountHeight, 3, false, demoRoutes},
       // Two robots that meet once: their streets cross, and nothing else of
       // their routes is shared. Their maps merge on the few loops there.
       {"crossing-2", "2 robots on campus streets that cross once and share nothing else, VLP-16",

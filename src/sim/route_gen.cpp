@@ -457,7 +457,9 @@ RoutePlan planCampusRobot(int index, int cols, std::uint64_t seed,
 
 std::vector<Route> campusRoutes(int robots, std::uint64_t seed, const CampusRouteConfig& config) {
   checkRobotCount(robots, "campusRoutes");
-  const int cols = static_cast<int>(std::ceil(std::sqrt(double(robots))));
+  if (config.columns < 0) throw core::Error("campusRoutes: columns must not be negative");
+  const int cols = config.columns > 0 ? std::min(config.columns, robots)
+                                      : static_cast<int>(std::ceil(std::sqrt(double(robots))));
   const Terrain terrain = makeTerrain(seed, config.terrain_amplitude, config.terrain_wavelength);
   std::vector<RoutePlan> plans;
   std::vector<Route> routes;

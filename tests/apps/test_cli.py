@@ -487,12 +487,17 @@ class Demo(unittest.TestCase):
             robots = metrics["robots"]
             self.assertEqual([r["name"] for r in robots], ["a", "b", "c"])
             for r in robots:
-                self.assertGreater(r["frames"], 1000)
+                self.assertGreater(r["frames"], 900)
                 self.assertLess(r["ate_rmse"], 0.5, r["name"])
                 self.assertLess(r["ate_rmse_odometry_only"], 0.5, r["name"])
                 self.assertGreater(r["bytes_sent"], 0, r["name"])
-            # The campus routes overlap: robots find, verify and keep loops with each other.
+                # What the demo shows: collaboration takes a good part of every
+                # car's drift out (34-91 % in five worlds, with traffic and
+                # without; BENCHMARKS.md, "The demo").
+                self.assertLess(r["ate_rmse"], 0.8 * r["ate_rmse_odometry_only"], r["name"])
+            # The cars' loops share streets: robots find, verify and keep loops with each other.
             self.assertGreater(sum(r["inter_loops_accepted"] for r in robots), 20)
+            self.assertGreater(metrics["robots"][1]["inter_loops_accepted"], 20)
             # Every robot took part in a finished optimisation round: one frame for all.
             for r in robots:
                 self.assertGreater(r["counters"].get("dgs_rounds", 0), 0, r["name"])
@@ -501,7 +506,7 @@ class Demo(unittest.TestCase):
             for name in ("report.html", "preview_world.png", "dataset/dataset.yaml",
                          "a/trajectory.tum", "b/graph.g2o", "c/odometry.tum"):
                 self.assertTrue(os.path.exists(os.path.join(tmp, name)), name)
-            # The merged map: every robot's points in its report colour, on the campus.
+            # The merged map: every robot's points in its report colour.
             points = self.check_maps(self, tmp, metrics)
             self.assertGreater(len(points), 10000)
             self.check_bound(tmp, metrics)
@@ -518,13 +523,13 @@ class Demo(unittest.TestCase):
 
 
 class DemoDataset(unittest.TestCase):
-    """A simulated demo dataset (ground truth only, scans regenerated), shared by a class."""
+    """A simulated small-3 dataset (ground truth only, scans regenerated), shared by a class."""
 
     @classmethod
     def setUpClass(cls):
         cls.tmp = tempfile.TemporaryDirectory()
         cls.dataset = os.path.join(cls.tmp.name, "demo")
-        run("simulate", "--preset", "demo", "--out", cls.dataset)
+        run("simulate", "--preset", "small-3", "--out", cls.dataset)
 
     @classmethod
     def tearDownClass(cls):
@@ -547,7 +552,7 @@ class Odometry(DemoDataset):
         self.assertEqual(metrics["frames"]["frames"], 200)
         self.assertEqual(metrics["frames"]["accepted"], 200)
         self.assertGreater(metrics["frames"]["distance_m"], 20.0)
-        # 20 s of VLP-16 driving in the demo campus: centimetres, not decimetres.
+        # 20 s of VLP-16 driving in the small-3 campus: centimetres, not decimetres.
         self.assertLess(metrics["accuracy"]["odometry"]["ate_se3_translation_m"]["rmse"], 0.10)
         self.assertGreater(metrics["mapper"]["keyframes"], 10)
         for name in ("trajectory.tum", "trajectory.kitti", "times.txt", "odometry.tum",
@@ -556,7 +561,7 @@ class Odometry(DemoDataset):
         self.assertIn("keyframes", stdout)
 
     def test_bench_odometry_says_whether_the_imu_levelled_it(self):
-        # The demo's robots read up from their IMU with every scan.
+        # The small-3 robots read up from their IMU with every scan.
         args = ("bench", "odometry", "--dataset", self.dataset, "--robot", "a",
                 "--max-frames", "30")
         _, stdout, _ = run(*args, "--json")
@@ -576,7 +581,7 @@ class Odometry(DemoDataset):
         self.assertLess(metrics["accuracy"]["odometry"]["ate_se3_translation_m"]["rmse"], 1e-6)
 
     def test_a_robot_still_standing_gets_its_outputs_and_no_ate(self):
-        # Robot c of the demo stands for its first seconds: its ground truth is one
+        # Robot c of small-3 stands for its first seconds: its ground truth is one
         # point, which no alignment can fit. The run is still written, and says why.
         out = os.path.join(self.tmp.name, "standing")
         _, stdout, _ = run("odometry", "--dataset", self.dataset, "--robot", "c", "--out", out,
@@ -783,7 +788,7 @@ class Simulate(unittest.TestCase):
 
     def simulate_short(self, out, *extra):
         """One demo robot cut to 4 scans: seconds, not minutes."""
-        return run("simulate", "--preset", "demo", "--robots", "1", "--max-scans", "4",
+        return run("simulate", "--preset", "small-3", "--robots", "1", "--max-scans", "4",
                    "--out", out, *extra)
 
     def test_a_dataset_reads_nothing_outside_its_folder_unless_allowed(self):
@@ -897,7 +902,7 @@ class Simulate(unittest.TestCase):
         self.assertEqual(code, 1)
         self.assertIn("mars", err)
         for name in ("kitti00-3", "kitti05-3", "kitti08-2", "campus-3", "campus-9", "aliasing-3",
-                     "demo"):
+                     "small-3", "demo", "crossing-2"):
             self.assertIn(name, err)
         self.assertEqual(len(err.strip().splitlines()), 1)
         self.assertFalse(os.path.exists(self.path("x")))
@@ -920,7 +925,7 @@ class Simulate(unittest.TestCase):
 
 
     def test_bench_sensor_holds_simulated_sweeps_to_real_ones(self):
-        run("simulate", "--preset", "demo", "--robots", "1", "--max-scans", "60",
+        run("simulate", "--preset", "small-3", "--robots", "1", "--max-scans", "60",
             "--sensor", "hdl64", "--out", self.path("ds"))
         _, out, _ = run("bench", "sensor", "--dataset", self.path("ds"), "--scans", "2",
                         "--data", DATA, "--json")
@@ -1549,7 +1554,7 @@ class OutputFolders(unittest.TestCase):
     def setUpClass(cls):
         cls.tmp = tempfile.TemporaryDirectory()
         cls.dataset = os.path.join(cls.tmp.name, "ds")
-        run("simulate", "--preset", "demo", "--robots", "2", "--max-scans", "40", "--out",
+        run("simulate", "--preset", "small-3", "--robots", "2", "--max-scans", "40", "--out",
             cls.dataset)
 
     @classmethod
@@ -1561,7 +1566,7 @@ class OutputFolders(unittest.TestCase):
         ds = self.dataset
         return {
             "run": ["run", "--dataset", ds, "--out", out, "--max-frames", "20"],
-            "simulate": ["simulate", "--preset", "demo", "--robots", "1", "--max-scans", "2",
+            "simulate": ["simulate", "--preset", "small-3", "--robots", "1", "--max-scans", "2",
                          "--out", out],
             "odometry": ["odometry", "--dataset", ds, "--out", out, "--max-frames", "10"],
             "bench place": ["bench", "place", "--dataset", ds, "--out", out],
@@ -1707,7 +1712,7 @@ class ExternalFrontEnd(unittest.TestCase):
     def setUpClass(cls):
         cls.tmp = tempfile.TemporaryDirectory()
         cls.dataset = os.path.join(cls.tmp.name, "ds")
-        run("simulate", "--preset", "demo", "--robots", "2", "--max-scans", "200",
+        run("simulate", "--preset", "small-3", "--robots", "2", "--max-scans", "200",
             "--odometry-drift", "1,0.01", "--out", cls.dataset)
 
     @classmethod
@@ -1763,7 +1768,7 @@ class ExternalFrontEnd(unittest.TestCase):
 
 
 class Run(unittest.TestCase):
-    """dcl-slam run: the demo campus, three robots over the simulated radio,
+    """dcl-slam run: the small-3 campus, three robots over the simulated radio,
     the first 150 scans of each, twice: the outputs are complete and the
     same both times."""
 
@@ -1771,7 +1776,7 @@ class Run(unittest.TestCase):
     def setUpClass(cls):
         cls.tmp = tempfile.TemporaryDirectory()
         cls.dataset = os.path.join(cls.tmp.name, "demo")
-        run("simulate", "--preset", "demo", "--out", cls.dataset)
+        run("simulate", "--preset", "small-3", "--out", cls.dataset)
         cls.outs = [os.path.join(cls.tmp.name, f"run{i}") for i in (1, 2)]
         cls.metrics = []
         for out, threads in zip(cls.outs, ("1", "2")):
@@ -1836,8 +1841,8 @@ class Run(unittest.TestCase):
 
     def test_robots_that_never_met_end_in_frames_of_their_own(self):
         # In their first 2 s the robots close no loop: each stays in its own
-        # odometry frame, and the table says the maps are not joined (the demo
-        # run, with loops, puts all three in a's: Demo).
+        # odometry frame, and the table says the maps are not joined (the whole
+        # run, with loops, puts all three in a's).
         out = os.path.join(self.tmp.name, "apart")
         _, stdout, _ = run("run", "--dataset", self.dataset, "--out", out, "--max-frames", "20")
         self.assertIn("the robots end in 3 frames no loop joins: a | b | c", stdout)
@@ -1939,7 +1944,7 @@ class LiveView(unittest.TestCase):
                         "scripts/setup --npm-prefix BUILD/npm installs @foxglove/ws-protocol")
         with tempfile.TemporaryDirectory() as tmp:
             dataset = os.path.join(tmp, "ds")
-            run("simulate", "--preset", "demo", "--robots", "2", "--max-scans", "300",
+            run("simulate", "--preset", "small-3", "--robots", "2", "--max-scans", "300",
                 "--out", dataset)
             # Port 0: any free one; the run says which before it waits for a viewer.
             proc = subprocess.Popen(

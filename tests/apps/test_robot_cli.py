@@ -1,5 +1,5 @@
 """End-to-end tests of one robot per process over Cyclone DDS: `dcl-slam robot`
-and `dcl-slam swarm`, run as a user runs them, on the simulated demo swarm.
+and `dcl-slam swarm`, run as a user runs them, on the simulated small-3 swarm.
 
 Robot processes talk on loopback in DDS domain 162 (the ping tests use 150..160),
 each swarm under its own name, so parallel test runs stay apart."""
@@ -27,7 +27,7 @@ def run(*args, check=True, timeout=300):
 
 
 def simulate_demo(folder):
-    run("simulate", "--preset", "demo", "--out", folder)
+    run("simulate", "--preset", "small-3", "--out", folder)
 
 
 def break_robot_b_scans(dataset):
@@ -186,7 +186,7 @@ class Robot(unittest.TestCase):
 
 
 class Swarm(unittest.TestCase):
-    """dcl-slam swarm: the three demo robots, one process each over DDS on loopback,
+    """dcl-slam swarm: the three small-3 robots, one process each over DDS on loopback,
     1000 scans each at four times real time, lingering 20 s of swarm time for the
     last exchanges (the routes meet after about 70 s: robots
     a and b first, then a and c); and a robot that fails stops the swarm."""
@@ -287,7 +287,7 @@ class Ros2Robot(unittest.TestCase):
     def setUpClass(cls):
         cls.tmp = tempfile.TemporaryDirectory()
         cls.dataset = os.path.join(cls.tmp.name, "ds")
-        run("simulate", "--preset", "demo", "--robots", "2", "--max-scans", str(cls.SCANS),
+        run("simulate", "--preset", "small-3", "--robots", "2", "--max-scans", str(cls.SCANS),
             "--out", cls.dataset)
 
     @classmethod

@@ -46,7 +46,7 @@ class Ros1Robot(unittest.TestCase):
         cls.tmp = tempfile.TemporaryDirectory()
         tmp = cls.tmp.name
         cls.dataset = os.path.join(tmp, "ds")
-        run("simulate", "--preset", "demo", "--robots", str(len(cls.ROBOTS)), "--max-scans",
+        run("simulate", "--preset", "small-3", "--robots", str(len(cls.ROBOTS)), "--max-scans",
             str(cls.SCANS), "--export", "bag", "--out", cls.dataset)
         port = free_port()
         cls.env = dict(os.environ, ROS_MASTER_URI=f"http://127.0.0.1:{port}",

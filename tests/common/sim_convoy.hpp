@@ -1,6 +1,6 @@
 #pragma once
 // A small simulated dataset in which two robots meet all the time: robot b
-// drives robot a's street of the demo campus 4 s (about 5 m) behind it, so
+// drives robot a's street of the small-3 campus 4 s (about 5 m) behind it, so
 // every place one sees the other sees too. 160 frames each (16 s, VLP-16).
 #include <filesystem>
 #include <string>
@@ -48,7 +48,7 @@ struct Convoy {
                   bool third = false) {
     folder = std::filesystem::temp_directory_path() /
              ("dcl_convoy_" + tag + "_" + std::to_string(::getpid()));
-    sim::Preset preset = sim::makePreset("demo");
+    sim::Preset preset = sim::makePreset("small-3");
     const sim::Route street = preset.routes.at(0);
     const auto route = back ? thereAndBack : sliceRoute;
     preset.routes = {route(street, 40, frames, "a"), route(street, 0, frames, "b")};

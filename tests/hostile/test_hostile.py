@@ -71,11 +71,11 @@ class Hostile(unittest.TestCase):
         os.makedirs(cls.good)
         subprocess.run(["/usr/bin/python3", os.path.join(SOURCE, "tests", "io", "make_test_bag.py"),
                         cls.good], check=True)
-        subprocess.run([DCL_SLAM, "simulate", "--preset", "demo", "--robots", "2",
+        subprocess.run([DCL_SLAM, "simulate", "--preset", "small-3", "--robots", "2",
                         "--max-scans", "4", "--odometry-drift", "1,0.01", "--out",
                         os.path.join(cls.good, "dataset")],
                        check=True, capture_output=True)
-        subprocess.run([DCL_SLAM, "simulate", "--preset", "demo", "--robots", "1",
+        subprocess.run([DCL_SLAM, "simulate", "--preset", "small-3", "--robots", "1",
                         "--max-scans", "2", "--export", "mcap", "--out",
                         os.path.join(cls.good, "mcap_dataset")],
                        check=True, capture_output=True)

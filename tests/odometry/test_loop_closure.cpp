@@ -1,5 +1,5 @@
 // Intra-robot loop closure and the local mapper on a simulated revisit: the
-// demo preset's first robot drives its block loop and a quarter of it again;
+// small-3 preset's first robot drives its block loop and a quarter of it again;
 // the odometry is its ground truth with a deterministic drift (scale and yaw
 // bias plus noise), so the test runs in seconds without the LiDAR odometry.
 
@@ -24,13 +24,13 @@ namespace {
 constexpr std::size_t kFrameStride = 3;   // every third 10 Hz pose: about 0.55 m apart
 constexpr std::size_t kExtraPoses = 250;  // the second pass: about 45 m of the first lap again
 
-/// The demo preset's robot "a" with its route driven once and then its first
+/// The small-3 preset's robot "a" with its route driven once and then its first
 /// `extra` poses again, so that the second pass revisits those streets.
 sim::Preset revisitPreset(std::size_t extra) {
   sim::PresetOptions options;
   options.data_dir = DCL_DATA_DIR;
   options.robots = 1;
-  sim::Preset preset = sim::makePreset("demo", options);
+  sim::Preset preset = sim::makePreset("small-3", options);
   core::Trajectory& route = preset.routes[0].T_world_sensor;
   const core::Trajectory lap = route;
   const double period = lap.stamp(1) - lap.stamp(0);

@@ -220,7 +220,7 @@ class RealIndex : public ::testing::Test {
     sim::PresetOptions options;
     options.sensor = "hdl64";
     const io::DatasetSpec spec =
-        sim::writeSimDataset(folder.string(), sim::makePreset("demo", options));
+        sim::writeSimDataset(folder.string(), sim::makePreset("small-3", options));
     const sim::SimWorld world(spec);
     for (std::size_t i = 0; i < 400; i += 10)
       simulated_.push_back(iris_->describe(world.scan(0, i)));

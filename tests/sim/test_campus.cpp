@@ -1,5 +1,5 @@
 // Geometric richness of VLP-16 scans in the campus world, along the routes of
-// the `demo` and `campus-3` presets: enough structure off the ground, spread
+// the `small-3` and `campus-3` presets: enough structure off the ground, spread
 // around the sensor and facing several directions, that scan-to-map ICP is
 // constrained in every horizontal direction and place recognition has
 // something to describe.
@@ -18,9 +18,9 @@
 //
 // Measured here, lowest over the checked scans (seed 1; seeds 2-8 alike):
 //            non-ground share  sectors  wall ratio
-//   before   demo 0.306        6        0.000 (median 0.025)   two buildings in the demo world
+//   before   small-3 0.306     6        0.000 (median 0.025)   two buildings in its world
 //            campus-3 0.356    6        0.047
-//   after    demo 0.470        8        0.137
+//   after    small-3 0.470     8        0.137
 //            campus-3 0.471    8        0.105   (seeds 1-8 of both: >= 0.454, >= 7, >= 0.070)
 // The thresholds sit below the lows after by a margin for other seeds and
 // layouts (0.38, 6, 0.05), and the share and wall ratio above the sparse
@@ -241,9 +241,9 @@ TEST_P(CampusRichness, Vlp16ScansSeeStructureAllRoundFacingSeveralWays) {
               GetParam().c_str(), scans.size(), low.non_ground_share, low.sectors, low.wall_ratio);
 }
 
-INSTANTIATE_TEST_SUITE_P(Presets, CampusRichness, ::testing::Values("demo", "campus-3"),
+INSTANTIATE_TEST_SUITE_P(Presets, CampusRichness, ::testing::Values("small-3", "campus-3"),
                          [](const ::testing::TestParamInfo<std::string>& info) {
-                           return info.param == "demo" ? std::string("demo") : "campus_3";
+                           return info.param == "small-3" ? std::string("small_3") : "campus_3";
                          });
 
 }  // namespace

@@ -21,8 +21,9 @@ bool hasKind(const std::vector<Overlap>& overlaps, OverlapKind kind) {
 }
 
 TEST(Presets, NamesAreListedInOrder) {
-  const std::vector<std::string> expected{"kitti00-3", "kitti05-3",  "kitti08-2", "campus-3",
-                                          "campus-9",  "aliasing-3", "demo",      "crossing-2"};
+  const std::vector<std::string> expected{"kitti00-3", "kitti05-3", "kitti08-2",
+                                          "campus-3",  "campus-9",  "aliasing-3",
+                                          "small-3",   "demo",      "crossing-2"};
   EXPECT_EQ(presetNames(), expected);
 }
 
@@ -63,7 +64,8 @@ INSTANTIATE_TEST_SUITE_P(Presets, EveryPreset,
                                            Expected{"campus-3", "campus", "vlp16", 3},
                                            Expected{"campus-9", "campus", "vlp16", 9},
                                            Expected{"aliasing-3", "aliasing", "vlp16", 3},
-                                           Expected{"demo", "campus", "vlp16", 3},
+                                           Expected{"small-3", "campus", "vlp16", 3},
+                                           Expected{"demo", "city", "vlp16", 3},
                                            Expected{"crossing-2", "campus", "vlp16", 2}),
                          [](const ::testing::TestParamInfo<Expected>& info) {
                            std::string name = info.param.name;
@@ -71,17 +73,47 @@ INSTANTIATE_TEST_SUITE_P(Presets, EveryPreset,
                            return name;
                          });
 
-TEST(Presets, DemoIsSmallWithLoopsBetweenRobots) {
-  const Preset demo = makePreset("demo");
-  ASSERT_EQ(demo.routes.size(), 3u);
-  for (const Route& r : demo.routes) {
+TEST(Presets, SmallIsSmallWithLoopsBetweenRobots) {
+  const Preset small = makePreset("small-3");
+  ASSERT_EQ(small.routes.size(), 3u);
+  for (const Route& r : small.routes) {
     EXPECT_GE(r.length(), 150.0);
     EXPECT_LE(r.length(), 250.0);
     EXPECT_LT(r.duration(), 150.0);
   }
-  const std::vector<Overlap> overlaps = findOverlaps(demo.routes);
+  const std::vector<Overlap> overlaps = findOverlaps(small.routes);
   EXPECT_TRUE(hasKind(overlaps, OverlapKind::opposite_direction));
   EXPECT_TRUE(hasKind(overlaps, OverlapKind::same_direction));
+}
+
+/// Whether routes `a` and `b` drive a stretch together the same way.
+bool shareSameDirection(const std::vector<Overlap>& overlaps, std::size_t a, std::size_t b) {
+  return std::any_of(overlaps.begin(), overlaps.end(), [&](const Overlap& o) {
+    return o.kind == OverlapKind::same_direction && !o.handover &&
+           ((o.robot_a == a && o.robot_b == b) || (o.robot_a == b && o.robot_b == a));
+  });
+}
+
+TEST(Presets, DemoCarsDriveLongLoopsWithTheirNeighbours) {
+  for (const std::uint64_t seed : {1u, 2u, 3u}) {
+    PresetOptions options;
+    options.seed = seed;
+    const Preset demo = makePreset("demo", options);
+    ASSERT_EQ(demo.routes.size(), 3u);
+    for (const Route& r : demo.routes) {
+      // A car's loop: long enough for its odometry to drift, short enough
+      // for the demo's two minutes.
+      EXPECT_GE(r.length(), 550.0) << r.name;
+      EXPECT_LE(r.length(), 650.0) << r.name;
+      EXPECT_LT(r.duration(), 120.0) << r.name;
+      EXPECT_GT(r.length() / r.duration(), 5.0) << r.name;
+    }
+    // The blocks in a column: a shares a street with b, b with c, each the same way.
+    const std::vector<Overlap> overlaps = findOverlaps(demo.routes);
+    EXPECT_TRUE(shareSameDirection(overlaps, 0, 1)) << seed;
+    EXPECT_TRUE(shareSameDirection(overlaps, 1, 2)) << seed;
+    EXPECT_FALSE(hasKind(overlaps, OverlapKind::opposite_direction)) << seed;
+  }
 }
 
 TEST(Presets, OptionsChangeSensorRobotsAndSeed) {
@@ -125,10 +157,10 @@ TEST(Presets, ErrorsNameTheChoices) {
   }
   PresetOptions options;
   options.sensor = "os1-64";
-  EXPECT_THROW(makePreset("demo", options), core::Error);
+  EXPECT_THROW(makePreset("small-3", options), core::Error);
   options.sensor.clear();
   options.robots = -1;
-  EXPECT_THROW(makePreset("demo", options), core::Error);
+  EXPECT_THROW(makePreset("small-3", options), core::Error);
 }
 
 }  // namespace

@@ -472,6 +472,38 @@ TEST(CampusRoutesDeterminism, SameSeedSameRoutes) {
 TEST(CampusRoutesErrors, RejectsNoRobots) {
   EXPECT_THROW(campusRoutes(0, 1), core::Error);
   EXPECT_THROW(aliasingRoutes(0, 1), core::Error);
+  CampusRouteConfig config;
+  config.columns = -1;
+  EXPECT_THROW(campusRoutes(3, 1, config), core::Error);
+}
+
+TEST(CampusRoutes, OneColumnStacksTheBlocks) {
+  CampusRouteConfig config;
+  config.columns = 1;
+  config.u_route_share = 0.0;
+  const std::vector<Route> routes = campusRoutes(4, 2, config);
+  ASSERT_EQ(routes.size(), 4u);
+  for (std::size_t i = 0; i < routes.size(); ++i) {
+    // Every loop around a block of its own, each block above the last.
+    double min_x = INFINITY, max_x = -INFINITY, min_y = INFINITY, max_y = -INFINITY;
+    for (std::size_t k = 0; k < routes[i].T_world_sensor.size(); ++k) {
+      const Eigen::Vector3d p = routes[i].T_world_sensor.pose(k).translation();
+      min_x = std::min(min_x, p.x()), max_x = std::max(max_x, p.x());
+      min_y = std::min(min_y, p.y()), max_y = std::max(max_y, p.y());
+    }
+    const double y0 = double(i) * config.block_pitch;
+    EXPECT_NEAR(min_x, 0.0, 3.0) << i;
+    EXPECT_NEAR(max_x, config.block_pitch, 3.0) << i;
+    EXPECT_NEAR(min_y, y0, 3.0) << i;
+    EXPECT_NEAR(max_y, y0 + config.block_pitch, 3.0) << i;
+  }
+  // Neighbours share a street, the same way; no one meets another head-on.
+  const std::vector<Overlap> overlaps = findOverlaps(routes);
+  for (std::size_t i = 0; i + 1 < routes.size(); ++i)
+    EXPECT_TRUE(std::any_of(overlaps.begin(), overlaps.end(), [&](const Overlap& o) {
+      return o.robot_a == i && o.robot_b == i + 1 && o.kind == OverlapKind::same_direction;
+    })) << i;
+  for (const Overlap& o : overlaps) EXPECT_NE(o.kind, OverlapKind::opposite_direction);
 }
 
 // ---------------------------------------------------------------- aliasing

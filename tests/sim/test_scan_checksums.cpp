@@ -104,6 +104,9 @@ const std::vector<ExpectedChecksums>& committed() {
                         {0xc5cf70d5b7258a4eULL, 0x284bd7734e6018e0ULL, 0x1072c1905b01e65bULL,
                          0x06e5cf5099b916fcULL}},
       ExpectedChecksums{"demo",
+                        {0x3baad323ac8e9b0dULL, 0x1d4a1d9f6902a0faULL, 0xc73489176314d070ULL,
+                         0x995d92570ebaa188ULL}},
+      ExpectedChecksums{"small-3",
                         {0x231635b44c505f8bULL, 0xc0b77605de1337e2ULL, 0xd467830bb0e9947dULL,
                          0x0957d4692a5585a9ULL}}};
   return table;

@@ -27,7 +27,7 @@ VoxelIndex voxelOf(const Eigen::Vector3f& p, double voxel) {
   return {axis(p.x()), axis(p.y()), axis(p.z())};
 }
 
-/// Three robots on one street of the demo campus, 6 s (about 8 m) apart, so
+/// Three robots on one street of the small-3 campus, 6 s (about 8 m) apart, so
 /// that their maps overlap: each one's keyframes every 2 m of its true route,
 /// with their scans and true poses. The scans are not distorted by the motion
 /// (but noisy), so that the true poses place them exactly.
@@ -39,7 +39,7 @@ struct Street {
   std::vector<Robot> robots;
 
   explicit Street(double voxel) {
-    sim::Preset preset = sim::makePreset("demo");
+    sim::Preset preset = sim::makePreset("small-3");
     const sim::Route street = preset.routes.at(0);
     preset.routes = {test::sliceRoute(street, 120, 80, "a"), test::sliceRoute(street, 60, 80, "b"),
                      test::sliceRoute(street, 0, 80, "c")};

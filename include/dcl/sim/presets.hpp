@@ -39,7 +39,7 @@ struct PresetOptions {
 };
 
 /// The preset names, in the order `--help` lists them: kitti00-3, kitti05-3,
-/// kitti08-2, campus-3, campus-9, aliasing-3, demo.
+/// kitti08-2, campus-3, campus-9, aliasing-3, small-3, demo, crossing-2.
 std::vector<std::string> presetNames();
 
 /// Builds the preset `name`. Throws core::Error listing the names for an

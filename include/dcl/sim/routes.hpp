@@ -179,6 +179,10 @@ struct CampusRouteConfig {
   double rate = 10.0;          ///< Hz, poses per second
   /// Probability that a robot asks for a U route; it drives a loop when no U can meet its partner.
   double u_route_share = 0.7;
+  /// Blocks in a row of the grid; 0: ceil(sqrt(robots)), a square. One column
+  /// puts every robot's block above the last, so that neighbours all drive
+  /// their shared street the same way.
+  int columns = 0;
   double max_wait = 40.0;       ///< s, longest wait at the start to make a planned rendezvous
   double rendezvous_gap = 3.0;  ///< s, a robot reaches a rendezvous this long after its partner
   double min_start_separation = 10.0;  ///< m, no robot starts closer than this to another
@@ -187,9 +191,10 @@ struct CampusRouteConfig {
 };
 
 /// `robots` robots (1 to 255) on a campus street grid, one block each, laid
-/// out row by row: each drives a loop around its block or a U around three of
-/// its sides (legs extended half a block), smooth (rounded corners, speed
-/// ramps), yaw along the path, z and tilt following a gentle terrain. Every
+/// out row by row (`columns` blocks to a row, a square grid by default): each
+/// drives a loop around its block or a U around three of its sides (legs
+/// extended half a block), smooth (rounded corners, speed ramps), yaw along
+/// the path, z and tilt following a gentle terrain. Every
 /// robot shares a street with the robot to its left (or, first in a row, the
 /// one below), so the overlap graph is connected; rows alternate the driving
 /// sense, so that neighbours in a row meet head-on and neighbours across rows
@@ -197,7 +202,7 @@ struct CampusRouteConfig {
 /// middle of that shared street `rendezvous_gap` seconds after its partner (a
 /// rendezvous; a loop starts a little further back when its start would be
 /// within `min_start_separation` of another robot's). Deterministic in `seed`.
-/// Throws core::Error for a robot count outside 1..255.
+/// Throws core::Error for a robot count outside 1..255 or negative columns.
 std::vector<Route> campusRoutes(int robots, std::uint64_t seed,
                                 const CampusRouteConfig& config = {});
 
