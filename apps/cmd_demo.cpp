@@ -1,10 +1,10 @@
 // `dcl-slam demo`: the built-in default run, no arguments needed. Simulates the
 // `demo` preset (three cars on loops around city blocks, VLP-16, with moving
-// traffic), runs the whole
-// swarm over the simulated radio as `dcl-slam run` does, prints a table per
-// robot (ATE by odometry alone and with collaboration, loops, bytes sent) and
-// writes the outputs: the dataset and its preview, trajectories, graphs, the
-// merged map, metrics.json and report.html.
+// traffic), runs the whole swarm over the simulated radio as `dcl-slam run`
+// does, prints a table per robot (ATE by odometry alone and with
+// collaboration, the cut, loops, bytes sent) and writes the outputs: the
+// dataset and its preview, trajectories, graphs, the merged map, metrics.json
+// and report.html.
 #include <filesystem>
 #include <string>
 #include <vector>
