@@ -10,6 +10,7 @@
 #include <fstream>
 #include <optional>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -28,6 +29,7 @@ inline std::string evoData(const std::string& name) {
 /// A KITTI pose file (12 numbers a line, row-major [R|t]); stamps are the line indices.
 inline core::Trajectory readKitti(const std::string& path) {
   std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot be opened");
   core::Trajectory trajectory;
   std::string line;
   while (std::getline(in, line)) {
@@ -45,6 +47,7 @@ inline core::Trajectory readKitti(const std::string& path) {
 /// A TUM pose file ("stamp x y z qx qy qz qw" a line, '#' comments).
 inline core::Trajectory readTum(const std::string& path) {
   std::ifstream in(path);
+  if (!in) throw std::runtime_error(path + ": cannot be opened");
   core::Trajectory trajectory;
   std::string line;
   while (std::getline(in, line)) {

@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <stdexcept>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -45,9 +46,12 @@ inline void writeBytes(const std::filesystem::path& path, const std::string& byt
   out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
 }
 
-/// The whole content of `path`.
+/// The whole content of `path`; throws std::runtime_error naming a file that
+/// cannot be opened (the shared data folder missing), rather than reading it
+/// as empty.
 inline std::string readBytes(const std::filesystem::path& path) {
   std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error(path.string() + ": cannot be opened");
   return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
