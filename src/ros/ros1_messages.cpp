@@ -264,7 +264,7 @@ class Reader : public Place {
   /// geometry_msgs/Pose, or Transform: `position` and `orientation` name the parts.
   Eigen::Isometry3d getPose(std::string_view position, std::string_view orientation) {
     const Eigen::Vector3d t = getVector(position);
-    Eigen::Quaterniond q = getQuaternion(orientation);
+    const Eigen::Quaterniond q = getQuaternion(orientation);
     if (!t.allFinite()) fail(position, "a value is not finite");
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.linear() = checkedRotation(q, orientation).toRotationMatrix();
