@@ -54,6 +54,7 @@ struct SimulateOptions {
   bool no_imu = false;                 ///< no IMU reading of up with the scans
   std::vector<double> odometry_drift;  ///< % and deg/m: a drifting external front-end per robot
   double traffic = 0.0;                ///< moving actors, times the world's own traffic
+  bool body_motion = false;            ///< generated routes' vehicles rock on their suspension
   bool force = false;                  ///< replace --out even when it holds other files
 };
 
@@ -165,8 +166,11 @@ io::DatasetSpec addDriftingOdometry(const std::string& folder, io::DatasetSpec s
 
 void runSimulate(const SimulateOptions& o) {
   const auto format = exportFormat(o.export_format);  // check before the slow part
-  sim::Preset preset = sim::makePreset(
-      o.preset, {.data_dir = o.data, .seed = o.seed, .robots = o.robots, .sensor = o.sensor});
+  sim::Preset preset = sim::makePreset(o.preset, {.data_dir = o.data,
+                                                  .seed = o.seed,
+                                                  .robots = o.robots,
+                                                  .sensor = o.sensor,
+                                                  .body_motion = o.body_motion});
   cutRoutes(preset, o.max_scans);
   OutputFolder out(o.out, o.force);
   io::DatasetSpec spec = sim::writeSimDataset(out.path(), preset,
@@ -345,6 +349,9 @@ void addSimulateCommand(CLI::App& app) {
                   "times the world's own traffic (1: a KITTI-like city street; 0: none)")
       ->capture_default_str()
       ->check(CLI::Range(0.0, io::kMaxTraffic));
+  cmd->add_flag("--body-motion", o->body_motion,
+                "the vehicles of generated routes rock on their suspension as a car does: pitch "
+                "on braking, roll in turns, the road's shake (KITTI's routes rock already)");
   addForceFlag(*cmd, o->force);
   cmd->callback([o] { runSimulateCommand(*o); });
 }

@@ -69,29 +69,34 @@ struct SystemOptions {
   std::size_t max_frames = 0;
   int threads = 0;
   double settle = swarm::SwarmConfig{}.settle;  ///< s at most after the data while robots optimise
-  double range = 0.0;    ///< m, the radio's range (0: unlimited, as in the paper)
-  double traffic = 0.0;  ///< moving actors, times each world's own traffic (0: none)
-  std::string markdown;  ///< where to write the tables as Markdown too
+  double range = 0.0;        ///< m, the radio's range (0: unlimited, as in the paper)
+  double traffic = 0.0;      ///< moving actors, times each world's own traffic (0: none)
+  bool body_motion = false;  ///< generated routes' vehicles rock on their suspension
+  std::string markdown;      ///< where to write the tables as Markdown too
   bool json = false;
 };
 
 /// The dataset of `preset` in `folder`, simulated unless it is already there.
-std::string ensureDataset(const std::string& preset, int robots, std::uint64_t seed, double traffic,
-                          const std::string& folder, const std::string& data) {
+std::string ensureDataset(const std::string& preset, int robots, std::uint64_t seed,
+                          const SystemOptions& o, const std::string& folder) {
   if (fs::exists(fs::path(folder) / "dataset.yaml")) return folder;
-  sim::writeSimDataset(folder,
-                       sim::makePreset(preset, {.data_dir = data, .seed = seed, .robots = robots}),
-                       {.traffic = traffic});
+  sim::writeSimDataset(
+      folder,
+      sim::makePreset(
+          preset,
+          {.data_dir = o.data, .seed = seed, .robots = robots, .body_motion = o.body_motion}),
+      {.traffic = o.traffic});
   return folder;
 }
 
 /// The name of a preset's run in `seed`'s world: the preset's own for seed 1
 /// (the presets' default), "<preset>-s<seed>" for the others, and
-/// "-t<density>" after it with traffic, so that worlds with and without
-/// traffic keep their own folders.
-std::string runName(const std::string& preset, std::uint64_t seed, double traffic) {
+/// "-t<density>" after it with traffic and "-b" with the vehicles' body
+/// motion, so that each kind of world keeps its own folders.
+std::string runName(const std::string& preset, std::uint64_t seed, const SystemOptions& o) {
   std::string name = seed == 1 ? preset : fmt::format("{}-s{}", preset, seed);
-  if (traffic > 0.0) name += fmt::format("-t{:g}", traffic);
+  if (o.traffic > 0.0) name += fmt::format("-t{:g}", o.traffic);
+  if (o.body_motion) name += "-b";
   return name;
 }
 
@@ -321,7 +326,7 @@ std::string tables(const std::vector<DatasetRun>& runs, const std::vector<Datase
 DatasetRun runOne(const std::string& preset, int robots, std::uint64_t seed,
                   const std::string& name, const SystemOptions& o, const AppConfig& config) {
   const std::string folder =
-      ensureDataset(preset, robots, seed, o.traffic, (fs::path(o.work) / name).string(), o.data);
+      ensureDataset(preset, robots, seed, o, (fs::path(o.work) / name).string());
   AppConfig c = config;
   c.radio.range = o.range;
   const auto start = std::chrono::steady_clock::now();
@@ -352,13 +357,12 @@ void runSystem(const SystemOptions& o, const AppConfig& config) {
   for (const std::uint64_t seed : o.seeds) {
     for (const std::string& preset : o.datasets) {
       if (preset == "none") continue;
-      runs.push_back(runOne(preset, 0, seed, runName(preset, seed, o.traffic), o, config));
+      runs.push_back(runOne(preset, 0, seed, runName(preset, seed, o), o, config));
     }
     if (o.scale != "none") {
       const std::string preset =
           o.scale_robots > 0 ? fmt::format("{}-{}", o.scale, o.scale_robots) : o.scale;
-      scales.push_back(
-          runOne(o.scale, o.scale_robots, seed, runName(preset, seed, o.traffic), o, config));
+      scales.push_back(runOne(o.scale, o.scale_robots, seed, runName(preset, seed, o), o, config));
       scales.back().preset = preset + " (large team)";
     }
   }
@@ -432,6 +436,9 @@ void addBenchSystemCommand(CLI::App& bench, const AppConfig& config) {
                   "moving cars, cyclists and pedestrians, and cars parked for a while, in every "
                   "world: this times the world's own traffic (0: none; the folders get -t<D>)")
       ->capture_default_str();
+  cmd->add_flag("--body-motion", o->body_motion,
+                "the vehicles of generated routes rock on their suspension (simulate "
+                "--body-motion; the folders get -b)");
   cmd->add_option("--markdown", o->markdown, "also write the tables to this file");
   cmd->add_flag("--json", o->json, "print every run's metrics and summary as JSON");
   cmd->callback([o, &config] { runSystem(*o, config); });

@@ -26,6 +26,10 @@ struct Recipe {
   /// Every robot reads up from an IMU with each scan, as the paper's robots
   /// do (their front-ends, LIO-SAM and FAST-LIO2, need one).
   bool imu = true;
+  /// The vehicle's body can rock on its suspension (rockBody, with
+  /// PresetOptions::body_motion). KITTI's ground truth is a real car's,
+  /// rocking already.
+  bool rocks = true;
 };
 
 std::vector<Route> kitti(const PresetOptions& options, const std::string& sequence) {
@@ -47,6 +51,7 @@ Recipe kittiRecipe(const std::string& sequence, int robots) {
   // One car drove the whole sequence: its parts carry that car's one HDL-64
   // (and its one IMU, KITTI's OXTS RT3003).
   recipe.shared_unit = true;
+  recipe.rocks = false;
   return recipe;
 }
 
@@ -169,6 +174,11 @@ Preset makePreset(const std::string& name, const PresetOptions& options) {
   preset.shared_unit = recipe.shared_unit;
   preset.imu = recipe.imu;
   preset.routes = recipe.routes(options, robotCount(recipe, options.robots));
+  if (recipe.rocks && options.body_motion)
+    for (std::size_t i = 0; i < preset.routes.size(); ++i)
+      preset.routes[i].T_world_sensor =
+          rockBody(preset.routes[i].T_world_sensor, recipe.mount_height,
+                   options.seed * 0x100000001B3ull + i);
   return preset;
 }
 

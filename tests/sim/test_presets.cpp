@@ -1,4 +1,6 @@
+#include <Eigen/Geometry>
 #include <algorithm>
+#include <cmath>
 #include <string>
 
 #include <gtest/gtest.h>
@@ -135,6 +137,29 @@ TEST(Presets, OptionsChangeSensorRobotsAndSeed) {
   seeded.seed = 10;
   const Preset c = makePreset("campus-9", seeded);
   EXPECT_FALSE(a.routes[0].T_world_odom().isApprox(c.routes[0].T_world_odom()));
+}
+
+TEST(Presets, BodyMotionRocksGeneratedRoutesOnly) {
+  PresetOptions rocking = withData();
+  rocking.body_motion = true;
+  // A generated route gets its body's pitch and roll, on the same path.
+  const Preset plank = makePreset("small-3", withData());
+  const Preset car = makePreset("small-3", rocking);
+  ASSERT_EQ(plank.routes[0].T_world_sensor.size(), car.routes[0].T_world_sensor.size());
+  double largest_tilt = 0.0;
+  for (std::size_t i = 0; i < plank.routes[0].T_world_sensor.size(); ++i) {
+    const Eigen::Isometry3d a = plank.routes[0].T_world_sensor.pose(i);
+    const Eigen::Isometry3d b = car.routes[0].T_world_sensor.pose(i);
+    EXPECT_LT((a.translation() - b.translation()).norm(), 0.1) << i;  // a metre's mast, a few deg
+    largest_tilt =
+        std::max(largest_tilt, Eigen::AngleAxisd(a.linear().transpose() * b.linear()).angle());
+  }
+  EXPECT_GT(largest_tilt, 0.2 * M_PI / 180);
+  // KITTI's ground truth is a real car's, rocking already: untouched.
+  const Preset kitti = makePreset("kitti05-3", withData());
+  const Preset kitti_rocking = makePreset("kitti05-3", rocking);
+  EXPECT_EQ(kitti.routes[2].T_world_sensor.pose(500).matrix(),
+            kitti_rocking.routes[2].T_world_sensor.pose(500).matrix());
 }
 
 TEST(Presets, KittiPresetsKeepTheirRobotCount) {

@@ -6,6 +6,7 @@
 
 #include <dcl/core/error.hpp>
 #include <dcl/core/se3.hpp>
+#include <dcl/eval/scan_statistics.hpp>
 #include <dcl/sim/routes.hpp>
 
 namespace dcl::sim {
@@ -529,6 +530,91 @@ TEST(AliasingRoutes, OneCorridorDrivenBothWaysAtDifferentOffsets) {
   const auto again = aliasingRoutes(3, 5, config);
   EXPECT_EQ(again[1].T_world_sensor.pose(100).matrix(),
             routes[1].T_world_sensor.pose(100).matrix());
+}
+
+// ---------------------------------------------------------------- the body
+
+/// `n` poses 0.1 s apart along `path(t)` (x, y, yaw), flat.
+template <typename Path>
+core::Trajectory drive(int n, Path path) {
+  core::Trajectory t;
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3d p = path(0.1 * i);
+    t.push_back(0.1 * i, core::makePose2d(p.x(), p.y(), p.z()));
+  }
+  return t;
+}
+
+/// Only the accelerations' tilt: no road.
+BodyMotion smoothRoad() {
+  BodyMotion motion;
+  motion.road_sigma_deg = 0.0;
+  motion.bump_spacing = 0.0;
+  return motion;
+}
+
+double deg(double rad) {
+  return rad * 180.0 / M_PI;
+}
+
+TEST(BodyMotion, BrakingDipsTheNoseAndATurnRollsTheBodyOut) {
+  // Braking from 10 m/s at 2 m/s^2: 0.25 deg a m/s^2 -> 0.5 deg nose down.
+  const auto braking =
+      rockBody(drive(50, [](double t) { return Eigen::Vector3d(10 * t - t * t, 0, 0); }), 1.73, 1,
+               smoothRoad());
+  const Eigen::Isometry3d& settled = braking.pose(35);
+  EXPECT_NEAR(deg(std::asin(-settled.linear()(2, 0))), 0.5, 0.05);  // x points down
+  // The mast turned about the ground: the sensor 1.73 m * 0.5 deg ahead.
+  EXPECT_NEAR(settled.translation().x() - (3.5 * 10 - 3.5 * 3.5), 1.73 * std::sin(0.5 * M_PI / 180),
+              0.002);
+  // A left circle of 20 m at 5 m/s: 1.25 m/s^2 across, 0.625 deg out (the left side up).
+  const auto turning =
+      rockBody(drive(100,
+                     [](double t) {
+                       const double a = 0.25 * t;
+                       return Eigen::Vector3d(20 * std::sin(a), 20 - 20 * std::cos(a), a);
+                     }),
+               1.73, 1, smoothRoad());
+  for (int i : {10, 50, 90})
+    EXPECT_NEAR(deg(std::asin(turning.pose(i).linear()(2, 1))), 0.625, 0.01) << i;
+}
+
+TEST(BodyMotion, ABodyStandingStillDoesNotRock) {
+  const core::Trajectory standing = drive(100, [](double) { return Eigen::Vector3d(3, 4, 0.5); });
+  const core::Trajectory rocked = rockBody(standing, 1.0, 7);  // road and bumps on
+  for (std::size_t i = 0; i < standing.size(); ++i)
+    EXPECT_TRUE(rocked.pose(i).isApprox(standing.pose(i), 1e-15)) << i;
+}
+
+TEST(BodyMotion, GeneratedRoutesRockAsKittisCarDoes) {
+  // The band of the real drives: KITTI 00, 05 and 08's fast pitch and roll.
+  double sigma_lo = INFINITY, sigma_hi = 0, p99_lo = INFINITY, p99_hi = 0;
+  for (const char* sequence : {"00", "05", "08"}) {
+    const eval::AttitudeStatistics real = eval::measureAttitude(kittiLidar(sequence));
+    for (double v : {real.pitch_sigma_deg, real.roll_sigma_deg})
+      sigma_lo = std::min(sigma_lo, v), sigma_hi = std::max(sigma_hi, v);
+    for (double v : {real.pitch_p99_deg, real.roll_p99_deg})
+      p99_lo = std::min(p99_lo, v), p99_hi = std::max(p99_hi, v);
+  }
+  ASSERT_GT(sigma_lo, 0.1);  // the real car does rock
+  for (std::uint64_t seed : {1, 2, 3}) {
+    const std::vector<Route> routes = campusRoutes(3, seed);
+    for (std::size_t r = 0; r < routes.size(); ++r) {
+      // Unrocked, a generated route is a plank on smooth terrain.
+      EXPECT_LT(eval::measureAttitude(routes[r].T_world_sensor).pitch_sigma_deg, 0.01);
+      const eval::AttitudeStatistics a =
+          eval::measureAttitude(rockBody(routes[r].T_world_sensor, 1.0, seed * 10 + r));
+      const std::string what = "seed " + std::to_string(seed) + " robot " + routes[r].name;
+      for (double v : {a.pitch_sigma_deg, a.roll_sigma_deg}) {
+        EXPECT_GT(v, sigma_lo - 0.05) << what;
+        EXPECT_LT(v, sigma_hi + 0.05) << what;
+      }
+      for (double v : {a.pitch_p99_deg, a.roll_p99_deg}) {
+        EXPECT_GT(v, p99_lo - 0.2) << what;
+        EXPECT_LT(v, p99_hi + 0.2) << what;
+      }
+    }
+  }
 }
 
 }  // namespace

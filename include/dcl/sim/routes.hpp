@@ -245,4 +245,33 @@ struct CrossingRouteConfig {
 /// seed also jitters the speeds.
 std::vector<Route> crossingRoutes(std::uint64_t seed, const CrossingRouteConfig& config = {});
 
+// ---------------------------------------------------------------- the body
+
+/// How a vehicle's body rocks on its suspension, the sensor with it: it
+/// pitches nose down when it brakes (up when it accelerates), rolls out of a
+/// turn, and the road's roughness shakes it in pitch and roll while it moves.
+/// Each axis is a damped spring: the body follows its equilibrium (the
+/// accelerations' tilt) with the overshoot of a real one, and the road drives
+/// it with noise. The defaults give a car's fast pitch and roll (less their
+/// 2 s mean) of about 0.2 deg, as KITTI's ground truth has (`bench sensor`).
+struct BodyMotion {
+  double pitch_per_accel_deg = 0.25;  ///< deg of pitch per m/s^2 along the path
+  double roll_per_accel_deg = 0.5;    ///< deg of roll per m/s^2 across it
+  double road_sigma_deg = 0.3;        ///< deg, 1 sigma of the road's pitch and roll at speed
+  double full_speed = 2.0;            ///< m/s from which the road shakes fully (none standing)
+  double bump_spacing = 25.0;         ///< m of road between two bumps on average (joints, potholes)
+  double bump_deg = 1.0;              ///< deg, 1 sigma of the swing a bump starts in pitch and roll
+  double frequency_hz = 1.4;          ///< the body's natural frequency on its springs
+  double damping = 0.35;              ///< its damping ratio
+};
+
+/// `T_world_sensor` (x forward, z up) with its body's motion added: the pitch
+/// and roll of `motion` about the body's axes, pivoting on the ground
+/// `mount_height` below the sensor (so that the sensor also sways a little).
+/// The accelerations come from the trajectory itself. A generated route
+/// drives a rigid plank over its terrain; real cars rock. Deterministic in
+/// `seed`. Trajectories of fewer than three poses come back unchanged.
+core::Trajectory rockBody(const core::Trajectory& T_world_sensor, double mount_height,
+                          std::uint64_t seed, const BodyMotion& motion = {});
+
 }  // namespace dcl::sim
