@@ -8,6 +8,7 @@
 #include <cmath>
 #include <vector>
 
+#include <dcl/core/se3.hpp>
 #include <dcl/sim/routes.hpp>
 
 #include "world_detail.hpp"
@@ -15,16 +16,22 @@
 namespace dcl::sim {
 namespace {
 
-constexpr double kDegToRad = M_PI / 180.0;
+using core::deg2rad;
+
 constexpr double kSubstep = 1e-3;  ///< s, the springs' integration step
 
 /// What drives the body at one pose: the tilt its accelerations ask for
-/// (rad, pitch about y and roll about x) and how hard the road shakes it (0-1).
+/// (rad, pitch about y and roll about x) and its speed, by which the road
+/// shakes it.
 struct Drive {
   Eigen::Vector2d equilibrium = Eigen::Vector2d::Zero();
-  double shake = 0.0;
   double speed = 0.0;  ///< m/s, horizontal
 };
+
+/// How hard the road shakes a body moving at `speed` (0-1).
+double shakeAt(double speed, const BodyMotion& motion) {
+  return motion.full_speed > 0.0 ? std::min(1.0, speed / motion.full_speed) : 1.0;
+}
 
 double bodyHeading(const Eigen::Isometry3d& T) {
   const Eigen::Vector3d x = T.linear().col(0);
@@ -59,9 +66,8 @@ std::vector<Drive> drives(const core::Trajectory& T, const BodyMotion& motion) {
     // Braking (along < 0) dips the nose: a positive turn about y (y to the
     // left) takes x down. A left turn (across > 0) rolls the body out to the
     // right: a positive turn about x raises the left side.
-    out[i].equilibrium << -motion.pitch_per_accel_deg * kDegToRad * along,
-        motion.roll_per_accel_deg * kDegToRad * across;
-    out[i].shake = motion.full_speed > 0.0 ? std::min(1.0, speed[i] / motion.full_speed) : 1.0;
+    out[i].equilibrium << -deg2rad(motion.pitch_per_accel_deg) * along,
+        deg2rad(motion.roll_per_accel_deg) * across;
     out[i].speed = speed[i];
   }
   return out;
@@ -77,7 +83,7 @@ std::vector<Eigen::Vector2d> integrate(const core::Trajectory& T, const std::vec
   // White noise of two-sided density S through x'' + 2 zeta omega x' +
   // omega^2 x = f leaves x with variance S / (4 zeta omega^3); a force held
   // for a step of dt has density sigma_f^2 dt.
-  const double sigma = motion.road_sigma_deg * kDegToRad;
+  const double sigma = deg2rad(motion.road_sigma_deg);
   const double force_sigma =
       std::sqrt(4.0 * zeta * omega * omega * omega * sigma * sigma / kSubstep);
   detail::Rng rng(seed * 0x9E3779B97F4A7C15ull + 0xB0D1ull);
@@ -88,7 +94,7 @@ std::vector<Eigen::Vector2d> integrate(const core::Trajectory& T, const std::vec
     return motion.bump_spacing > 0.0 ? -std::log(1.0 - rng.uniform()) * motion.bump_spacing
                                      : INFINITY;
   };
-  const double kick_sigma = motion.bump_deg * kDegToRad * omega / 0.7;
+  const double kick_sigma = deg2rad(motion.bump_deg) * omega / 0.7;
   double to_bump = next_bump();
   Eigen::Vector2d angle = drive.front().equilibrium;
   Eigen::Vector2d rate = Eigen::Vector2d::Zero();
@@ -101,7 +107,8 @@ std::vector<Eigen::Vector2d> integrate(const core::Trajectory& T, const std::vec
       const double w = (static_cast<double>(k) + 1.0) / static_cast<double>(steps);
       const Eigen::Vector2d target =
           (1.0 - w) * drive[i - 1].equilibrium + w * drive[i].equilibrium;
-      const double shake = (1.0 - w) * drive[i - 1].shake + w * drive[i].shake;
+      const double shake =
+          (1.0 - w) * shakeAt(drive[i - 1].speed, motion) + w * shakeAt(drive[i].speed, motion);
       const double dt = span / static_cast<double>(steps);
       to_bump -= ((1.0 - w) * drive[i - 1].speed + w * drive[i].speed) * dt;
       if (to_bump <= 0.0) {
