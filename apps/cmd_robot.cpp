@@ -428,13 +428,19 @@ struct LiveRobot {
   static constexpr double kImuWindow = 10.0;
   Eigen::Matrix3d R_lidar_imu;
   msg::UpReadings imu_readings;
-  std::size_t imu_received = 0;             ///< IMU messages
-  std::size_t imu_without_orientation = 0;  ///< of them, no orientation to level with
-  std::size_t scans_without_imu = 0;        ///< scans with no IMU reading within ros.imu_max_gap
-  std::size_t without_odometry = 0;         ///< scans the external odometry did not reach in time
-  std::size_t odometry_received = 0;        ///< external odometry messages
-  std::size_t odometry_refused = 0;         ///< of them, not after the last one, or not finite
-  std::size_t received = 0;                 ///< clouds that arrived
+  std::size_t imu_received = 0;  ///< IMU messages
+  /// While no IMU reading has come yet, for this long after the first scan
+  /// (s), a scan still waits for its reading: the IMU's topic is a
+  /// connection of its own, and its first reading may come a moment after the
+  /// scan of the same stamp. Later, scans wait only while the IMU talks.
+  static constexpr double kImuFirstReadingWait = 1.0;
+  std::optional<double> first_scan_arrived;  ///< on the wall clock
+  std::size_t imu_without_orientation = 0;   ///< of them, no orientation to level with
+  std::size_t scans_without_imu = 0;         ///< scans with no IMU reading within ros.imu_max_gap
+  std::size_t without_odometry = 0;          ///< scans the external odometry did not reach in time
+  std::size_t odometry_received = 0;         ///< external odometry messages
+  std::size_t odometry_refused = 0;          ///< of them, not after the last one, or not finite
+  std::size_t received = 0;                  ///< clouds that arrived
   std::size_t dropped = 0;  ///< of them, replaced by a newer one before the front-end took them
   std::size_t refused = 0;  ///< of them, unreadable (no x, y, z; sizes that do not fit)
   std::string last_refusal;
@@ -526,6 +532,7 @@ struct LiveRobot {
     // the next scan is here, and the reading was not.
     if (waiting && waiting->held_for_imu) takeWaiting(/*newer_scan=*/true);
     if (waiting) ++dropped;
+    if (!first_scan_arrived) first_scan_arrived = unixNow();
     waiting = Waiting{nodeStamp(m.header.stamp), std::move(cloud), unixNow()};
   }
 
@@ -564,8 +571,11 @@ struct LiveRobot {
     }
     // Its IMU reading may still be on its way (another connection): the scan
     // waits for a reading at or after its stamp, ros.imu_max_gap at most,
-    // and only while the IMU talks at all.
-    waiting->held_for_imu = !newer_scan && !ros.imu.empty() && imu_received > 0 &&
+    // and only while the IMU talks at all (or may yet say its first word).
+    const bool imu_talks =
+        imu_received > 0 ||
+        (first_scan_arrived && unixNow() - *first_scan_arrived < kImuFirstReadingWait);
+    waiting->held_for_imu = !newer_scan && !ros.imu.empty() && imu_talks &&
                             !imu_readings.reaches(waiting->stamp) &&
                             unixNow() - waiting->arrived < ros.imu_max_gap;
     if (waiting->held_for_imu) return;
