@@ -1,8 +1,13 @@
 #include "raycaster.hpp"
 
 #include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
 #include <cstring>
+#include <limits>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <embree3/rtcore.h>
@@ -48,12 +53,29 @@ void checkWorld(const World& world) {
 /// Embree picks its kernels by the CPU it runs on (SSE, AVX2, AVX-512), and
 /// their arithmetic differs in the last bits: the same scan cast on two
 /// machines differed in most of its points, enough to turn a tracked turn
-/// into a lost one. Pinned to SSE2, the kernels every x86-64 CPU runs, a
-/// simulated dataset is the same bits everywhere (`ctest -R ScanChecksums`,
-/// which also passes with glibc's own AVX2 and FMA paths switched off).
-/// It costs speed: an HDL-64 sweep takes about 1.6 times as long as with
-/// AVX-512 (BENCHMARKS.md, "Simulator").
+/// into a lost one. Pinning the kernels to SSE2 is not enough: even those
+/// divide by the hardware's reciprocal estimate (`rcpps` and one Newton
+/// step), whose bits differ between Intel's and AMD's CPUs, and so do the
+/// distances by which Embree orders two triangles a beam meets at nearly one
+/// depth (along an edge two triangles share, at the seam of a wall and the
+/// ground). So Embree's distance is only a first answer: a second query
+/// around it gathers every triangle the beam meets within kTieWindow of it
+/// (Embree's tests of whether a beam meets a triangle use no estimate, and
+/// give the same answer everywhere), each one's distance is computed here in
+/// double precision from its corners, and the nearest wins, the lower index
+/// on a tie (Impl::makeHit). A simulated dataset is then the same bits on
+/// every x86-64 CPU (`ctest -R ScanChecksums`, which also runs the scans on
+/// an emulated CPU and with glibc's AVX2 and FMA paths switched off). SSE2
+/// stays: the tests of whether a beam meets a triangle are then one code
+/// path everywhere, without the fused multiply-adds of AVX2.
 constexpr const char* kDeviceConfig = "isa=sse2";
+
+/// The second query's window around Embree's distance: its estimate is off
+/// by a few units in the last place of a float (1e-7 of the range), so
+/// every triangle that could be nearer is within it, and none that is
+/// farther by more than a millimetre in 100 m can win.
+constexpr float kTieWindowRelative = 1e-5f;
+constexpr float kTieWindowAbsolute = 1e-5f;  ///< m
 
 /// Rays per packet. On this project's machine (AVX-512) a whole HDL-64 sweep
 /// of a 10^5-triangle street took 12.3 ms in 16-ray packets of a column's
@@ -91,13 +113,28 @@ struct RayCaster::Impl {
   DevicePtr device;
   ScenePtr scene;
   std::vector<Surface> surfaces;
+  std::vector<Eigen::Vector3f> vertices;                ///< the world's, for the exact range
+  std::vector<std::array<std::uint32_t, 3>> triangles;  ///< the world's
+
+  /// The second query's state: for each lane of a packet, the nearest
+  /// triangle met so far by its exact range.
+  struct TieContext {
+    RTCIntersectContext context;  ///< first: Embree hands the filter a pointer to it
+    const Impl* impl = nullptr;
+    std::array<double, kPacket> range{};
+    std::array<unsigned, kPacket> prim{};
+    std::array<Eigen::Vector3d, kPacket> origin{};  ///< the beams'
+    std::array<Eigen::Vector3d, kPacket> dir{};
+  };
 
   void throwIfFailed(const char* step) const;
   void build(const World& world);
-  [[nodiscard]] RayHit readHit(const RTCRayHit16& packet, int lane) const;
-  [[nodiscard]] RayHit readHit(const RTCRayHit& rayhit) const;
-  [[nodiscard]] RayHit makeHit(float tfar, unsigned prim, const Eigen::Vector3f& Ng,
-                               const Eigen::Vector3f& dir) const;
+  [[nodiscard]] std::pair<Eigen::Vector3d, Eigen::Vector3d> cornerAndNormal(unsigned prim) const;
+  [[nodiscard]] double exactRange(unsigned prim, const Eigen::Vector3d& origin,
+                                  const Eigen::Vector3d& dir) const;
+  [[nodiscard]] RayHit makeHit(unsigned prim, double range, const Eigen::Vector3d& dir) const;
+  void castPacket(RTCRayHit16& packet, const int* valid, std::span<RayHit> hits) const;
+  static void keepNearest(const RTCFilterFunctionNArguments* args);
 };
 
 void RayCaster::Impl::throwIfFailed(const char* step) const {
@@ -112,9 +149,11 @@ void RayCaster::Impl::build(const World& world) {
   scene.reset(rtcNewScene(device.get()));
   throwIfFailed("create a scene");
   rtcSetSceneBuildQuality(scene.get(), kBuildQuality);
-  // Without it a beam exactly along an edge shared by two triangles can slip
-  // through a closed mesh; measured at no cost to trace speed.
-  rtcSetSceneFlags(scene.get(), RTC_SCENE_FLAG_ROBUST);
+  // Without ROBUST a beam exactly along an edge shared by two triangles can
+  // slip through a closed mesh (measured at no cost to trace speed); the
+  // context's filter runs the second query (Impl::keepNearest).
+  rtcSetSceneFlags(scene.get(), static_cast<RTCSceneFlags>(RTC_SCENE_FLAG_ROBUST |
+                                                           RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION));
   if (world.triangles.empty()) {
     rtcCommitScene(scene.get());
     throwIfFailed("build an empty scene");
@@ -141,29 +180,107 @@ void RayCaster::Impl::build(const World& world) {
   throwIfFailed("build the scene");
 }
 
-RayHit RayCaster::Impl::makeHit(float tfar, unsigned prim, const Eigen::Vector3f& Ng,
-                                const Eigen::Vector3f& dir) const {
+/// Triangle `prim`'s first corner and its (unnormalised) normal, in double precision.
+std::pair<Eigen::Vector3d, Eigen::Vector3d> RayCaster::Impl::cornerAndNormal(unsigned prim) const {
+  const auto& t = triangles[prim];
+  const Eigen::Vector3d a = vertices[t[0]].cast<double>();
+  return {a, (vertices[t[1]].cast<double>() - a).cross(vertices[t[2]].cast<double>() - a)};
+}
+
+/// The range from `origin` along `dir` to the plane of triangle `prim`, in
+/// double precision from its corners (IEEE operations only: the same bits on
+/// every CPU); NaN for a beam along the plane or a triangle without one.
+double RayCaster::Impl::exactRange(unsigned prim, const Eigen::Vector3d& origin,
+                                   const Eigen::Vector3d& dir) const {
+  const auto [a, n] = cornerAndNormal(prim);
+  const double along = n.dot(dir);
+  if (along == 0.0) return std::numeric_limits<double>::quiet_NaN();
+  return n.dot(a - origin) / along;
+}
+
+/// The hit on triangle `prim` at `range`, rounded once to float, and the
+/// angle between the beam and the triangle's normal.
+RayHit RayCaster::Impl::makeHit(unsigned prim, double range, const Eigen::Vector3d& dir) const {
+  const Eigen::Vector3d n = cornerAndNormal(prim).second;
+  const double scale = n.norm() * dir.norm();
   RayHit hit;
-  hit.range = tfar;
+  hit.range = static_cast<float>(range);
   hit.surface = surfaces[prim];
-  const float norm = Ng.norm() * dir.norm();
-  hit.cos_incidence = norm > 0.0f ? std::min(1.0f, std::abs(Ng.dot(dir)) / norm) : 0.0f;
+  hit.cos_incidence =
+      scale > 0.0 ? static_cast<float>(std::min(1.0, std::abs(n.dot(dir)) / scale)) : 0.0f;
   return hit;
 }
 
-RayHit RayCaster::Impl::readHit(const RTCRayHit16& packet, int lane) const {
-  if (packet.hit.geomID[lane] == RTC_INVALID_GEOMETRY_ID) return {};
-  const auto& r = packet.ray;
-  const auto& h = packet.hit;
-  return makeHit(r.tfar[lane], h.primID[lane], {h.Ng_x[lane], h.Ng_y[lane], h.Ng_z[lane]},
-                 {r.dir_x[lane], r.dir_y[lane], r.dir_z[lane]});
+/// The second query's filter: every triangle the beam meets in the window is
+/// weighed by its exact range and refused, so that the query goes on to the
+/// window's end whatever order Embree meets them in.
+void RayCaster::Impl::keepNearest(const RTCFilterFunctionNArguments* args) {
+  auto* tie = reinterpret_cast<TieContext*>(args->context);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (args->valid[i] != -1) continue;
+    args->valid[i] = 0;
+    const unsigned lane = RTCRayN_id(args->ray, args->N, i);
+    const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+    if (lane >= static_cast<unsigned>(kPacket)) continue;
+    const double range = tie->impl->exactRange(prim, tie->origin[lane], tie->dir[lane]);
+    if (!(range >= 0.0)) continue;
+    if (range < tie->range[lane] || (range == tie->range[lane] && prim < tie->prim[lane])) {
+      tie->range[lane] = range;
+      tie->prim[lane] = prim;
+    }
+  }
 }
 
-RayHit RayCaster::Impl::readHit(const RTCRayHit& rayhit) const {
-  if (rayhit.hit.geomID == RTC_INVALID_GEOMETRY_ID) return {};
-  const auto& r = rayhit.ray;
-  const auto& h = rayhit.hit;
-  return makeHit(r.tfar, h.primID, {h.Ng_x, h.Ng_y, h.Ng_z}, {r.dir_x, r.dir_y, r.dir_z});
+/// Both queries of one packet (its valid lanes `valid`, their hits into `hits`).
+void RayCaster::Impl::castPacket(RTCRayHit16& packet, const int* valid,
+                                 std::span<RayHit> hits) const {
+  RTCIntersectContext first;
+  rtcInitIntersectContext(&first);
+  first.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  rtcIntersect16(valid, scene.get(), &first, &packet);
+
+  TieContext tie;
+  rtcInitIntersectContext(&tie.context);
+  tie.context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+  tie.context.filter = keepNearest;
+  tie.impl = this;
+  tie.range.fill(std::numeric_limits<double>::infinity());
+  alignas(64) int again[kPacket];
+  std::array<unsigned, kPacket> first_prim{};
+  auto& r = packet.ray;
+  for (int lane = 0; lane < kPacket; ++lane) {
+    again[lane] = 0;
+    if (valid[lane] == 0 || packet.hit.geomID[lane] == RTC_INVALID_GEOMETRY_ID) continue;
+    again[lane] = -1;
+    first_prim[lane] = packet.hit.primID[lane];
+    tie.origin[lane] = {r.org_x[lane], r.org_y[lane], r.org_z[lane]};
+    tie.dir[lane] = {r.dir_x[lane], r.dir_y[lane], r.dir_z[lane]};
+    const float window = r.tfar[lane] * kTieWindowRelative + kTieWindowAbsolute;
+    r.tnear[lane] = std::max(0.0f, r.tfar[lane] - window);
+    r.tfar[lane] += window;
+    packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
+  }
+  rtcIntersect16(again, scene.get(), &tie.context, &packet);
+
+  for (std::size_t lane = 0; lane < hits.size(); ++lane) {
+    if (again[lane] == 0) {
+      hits[lane] = RayHit{};
+      continue;
+    }
+    const Eigen::Vector3d& origin = tie.origin[lane];
+    const Eigen::Vector3d& dir = tie.dir[lane];
+    unsigned prim = tie.prim[lane];
+    double range = tie.range[lane];
+    if (!std::isfinite(range)) {  // the window lost the first answer: keep it
+      prim = first_prim[lane];
+      range = exactRange(prim, origin, dir);
+      if (!(range >= 0.0)) {
+        hits[lane] = RayHit{};
+        continue;
+      }
+    }
+    hits[lane] = makeHit(prim, range, dir);
+  }
 }
 
 RayCaster::RayCaster(const World& world) : impl_(std::make_unique<Impl>()) {
@@ -176,6 +293,8 @@ RayCaster::RayCaster(const World& world) : impl_(std::make_unique<Impl>()) {
   }
   rtcSetDeviceErrorFunction(impl_->device.get(), recordDeviceError, &impl_->errors);
   impl_->surfaces = world.surfaces;
+  impl_->vertices = world.vertices;
+  impl_->triangles = world.triangles;
   impl_->build(world);
 }
 
@@ -188,28 +307,13 @@ std::size_t RayCaster::triangleCount() const {
 }
 
 RayHit RayCaster::cast(const Ray& ray, float max_range) const {
-  RTCRayHit rayhit{};
-  rayhit.ray.org_x = ray.origin.x();
-  rayhit.ray.org_y = ray.origin.y();
-  rayhit.ray.org_z = ray.origin.z();
-  rayhit.ray.dir_x = ray.direction.x();
-  rayhit.ray.dir_y = ray.direction.y();
-  rayhit.ray.dir_z = ray.direction.z();
-  rayhit.ray.tnear = 0.0f;
-  rayhit.ray.tfar = max_range;
-  rayhit.ray.mask = 0xffffffffu;
-  rayhit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-  RTCIntersectContext context;
-  rtcInitIntersectContext(&context);
-  rtcIntersect1(impl_->scene.get(), &context, &rayhit);
-  return impl_->readHit(rayhit);
+  RayHit hit;
+  cast(std::span<const Ray>(&ray, 1), max_range, std::span<RayHit>(&hit, 1));
+  return hit;
 }
 
 void RayCaster::cast(std::span<const Ray> rays, float max_range, std::span<RayHit> hits) const {
   if (hits.size() != rays.size()) throw core::Error("RayCaster::cast: one hit slot per ray");
-  RTCIntersectContext context;
-  rtcInitIntersectContext(&context);
-  context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
   alignas(64) RTCRayHit16 packet;
   alignas(64) int valid[kPacket];
   for (std::size_t first = 0; first < rays.size(); first += kPacket) {
@@ -219,9 +323,7 @@ void RayCaster::cast(std::span<const Ray> rays, float max_range, std::span<RayHi
       loadLane(packet, lane, rays[first + static_cast<std::size_t>(std::min(lane, count - 1))],
                max_range);
     }
-    rtcIntersect16(valid, impl_->scene.get(), &context, &packet);
-    for (int lane = 0; lane < count; ++lane)
-      hits[first + static_cast<std::size_t>(lane)] = impl_->readHit(packet, lane);
+    impl_->castPacket(packet, valid, hits.subspan(first, static_cast<std::size_t>(count)));
   }
 }
 
