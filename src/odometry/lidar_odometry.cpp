@@ -253,10 +253,10 @@ std::vector<Eigen::Vector3d> LidarOdometry::thinnedFrame(const core::PointCloud&
   return voxelDownsample(deskewedFrame(cloud, t_mid), 0.5 * config_.mapVoxelSize());
 }
 
-LidarOdometry::FrameSource LidarOdometry::sourceOf(const core::PointCloud& cloud,
-                                                   double t_mid) const {
+LidarOdometry::FrameSource LidarOdometry::sourceOf(const core::PointCloud& cloud, double t_mid,
+                                                   const core::Vector6d& velocity) const {
   const std::vector<Eigen::Vector3d> deskewed =
-      deskew(cloud, config_.deskew ? velocity_ : core::Vector6d::Zero(), t_mid);
+      deskew(cloud, config_.deskew ? velocity : core::Vector6d::Zero(), t_mid);
   FrameSource source;
   const bool timed = config_.deskew && sweepDuration(cloud) > 0.0;
   for (const std::size_t i : voxelDownsampleIndices(deskewed, 1.5 * config_.mapVoxelSize())) {
@@ -266,6 +266,19 @@ LidarOdometry::FrameSource LidarOdometry::sourceOf(const core::PointCloud& cloud
     source.sweep.offsets.push_back(static_cast<double>(cloud.time[i]) - t_mid);
   }
   return source;
+}
+
+RegistrationResult LidarOdometry::registerCoarseToFine(std::span<const Eigen::Vector3d> points,
+                                                       const Eigen::Isometry3d& T_start) const {
+  const double learned = threshold_.sigma();
+  RegistrationResult fit;
+  fit.T_target_source = T_start;
+  for (double sigma = config_.threshold.initial_threshold;;
+       sigma = std::max(0.5 * sigma, learned)) {
+    fit = registerScan(points, map_, fit.T_target_source, frameIcpConfig(sigma));
+    if (fit.inliers < config_.icp.min_inliers || sigma <= learned) break;
+  }
+  return fit;
 }
 
 RegistrationResult LidarOdometry::registerRigid(const FrameSource& source,
@@ -292,16 +305,7 @@ RegistrationResult LidarOdometry::registerRigid(const FrameSource& source,
   const double share = static_cast<double>(rigid.inliers) /
                        static_cast<double>(std::max<std::size_t>(source.deskewed.size(), 1));
   if (inlier_share_average_ > 0.0 && share < kLostShareRatio * inlier_share_average_) {
-    // Coarse to fine: the wide gate from the prediction, then halved at each
-    // pass, each from where the last ended, down to the learned gate.
-    const double learned = threshold_.sigma();
-    RegistrationResult again = rigid;
-    again.T_target_source = T_predicted;
-    for (double sigma = config_.threshold.initial_threshold;;
-         sigma = std::max(0.5 * sigma, learned)) {
-      again = registerScan(source.deskewed, map_, again.T_target_source, frameIcpConfig(sigma));
-      if (again.inliers < config_.icp.min_inliers || sigma <= learned) break;
-    }
+    const RegistrationResult again = registerCoarseToFine(source.deskewed, T_predicted);
     if (!again.degenerate && again.inliers > rigid.inliers) rigid = again;
   }
   return rigid;
@@ -310,27 +314,45 @@ RegistrationResult LidarOdometry::registerRigid(const FrameSource& source,
 LidarOdometry::FrameRegistration LidarOdometry::registerFrame(
     const core::PointCloud& cloud, double stamp, double t_mid,
     const Eigen::Isometry3d& T_predicted) const {
-  const FrameSource source = sourceOf(cloud, t_mid);
+  const FrameSource source = sourceOf(cloud, t_mid, velocity_);
   FrameRegistration frame{registerRigid(source, T_predicted), std::nullopt, source.deskewed.size()};
   if (!motionChanged(frame.registration, stamp + t_mid, sweepDuration(cloud)) ||
       source.sweep.points.empty()) {
     return frame;
   }
   // The sweep was deskewed with a velocity the sensor no longer had, bent
-  // by up to half a sweep of the difference: estimate its own twist with
-  // its pose, from where the rigid fit ended; kept only if it fits better.
+  // by up to half a sweep of the difference, and the rigid fit settled on
+  // the bent sweep. What the sensor did instead is best told by the motion
+  // that fit measured since the last sweep: deskewed with that, the sweep
+  // is fitted again, coarse to fine (its far points moved metres beyond the
+  // gate that steady motion had shrunk), and from there with a twist of its
+  // own. One sweep's bend pins its twist only weakly, so the estimate stays
+  // near its prior, which is that measured motion: centred on the velocity
+  // the sensor no longer had, it stayed there (KITTI 00's car going from 12
+  // to 36 deg/s of yaw kept 14-16 deg/s for two sweeps, and the next sweep,
+  // deskewed with that, was registered 1.2 deg off). Of the three fits, the
+  // one that fits the map best is kept.
+  const core::Vector6d measured =
+      core::logSE3(T_odom_reference_.inverse() * frame.registration.T_target_source) /
+      (stamp + t_mid - *last_reference_time_);
+  const FrameSource redone = sourceOf(cloud, t_mid, measured);
+  const RegistrationResult refit =
+      registerCoarseToFine(redone.deskewed, frame.registration.T_target_source);
+  const bool refit_usable = refit.inliers >= config_.icp.min_inliers && !refit.degenerate;
   SweepMotionPrior prior;
-  prior.velocity = velocity_;
+  prior.velocity = measured;
   prior.sigma << Eigen::Vector3d::Constant(config_.twist_sigma_linear),
       Eigen::Vector3d::Constant(config_.twist_sigma_angular);
-  const SweepRegistration sweep =
-      registerSweep(source.sweep, map_, frame.registration.T_target_source, prior,
-                    frameIcpConfig(threshold_.sigma()));
-  if (sweep.registration.inliers < config_.icp.min_inliers || sweep.registration.degenerate ||
-      sweep.registration.rmse >= frame.registration.rmse) {
-    return frame;
-  }
-  return {sweep.registration, sweep.velocity, source.deskewed.size()};
+  const SweepRegistration sweep = registerSweep(
+      redone.sweep, map_, refit_usable ? refit.T_target_source : frame.registration.T_target_source,
+      prior, frameIcpConfig(threshold_.sigma()));
+  FrameRegistration best = frame;
+  if (refit_usable && refit.rmse < best.registration.rmse)
+    best = {refit, measured, redone.deskewed.size()};
+  if (sweep.registration.inliers >= config_.icp.min_inliers && !sweep.registration.degenerate &&
+      sweep.registration.rmse < best.registration.rmse)
+    best = {sweep.registration, sweep.velocity, redone.deskewed.size()};
+  return best;
 }
 
 bool LidarOdometry::motionChanged(const RegistrationResult& rigid, double reference_time,

@@ -197,8 +197,8 @@ class LidarOdometry final : public Odometry {
   [[nodiscard]] std::vector<Eigen::Vector3d> thinnedFrame(const core::PointCloud& cloud,
                                                           double t_mid) const;
   /// A frame's points as registration takes them: one per 1.5 map voxels,
-  /// deskewed with the current velocity, and the same points raw with their
-  /// offsets from mid-sweep (none when the points carry no times).
+  /// deskewed with `velocity`, and the same points raw with their offsets
+  /// from mid-sweep (none when the points carry no times).
   struct FrameSource {
     std::vector<Eigen::Vector3d> deskewed;
     SweepPoints sweep;
@@ -209,10 +209,16 @@ class LidarOdometry final : public Odometry {
     std::optional<core::Vector6d> twist;
     std::size_t source_points = 0;  ///< the deskewed, thinned source it registered
   };
-  [[nodiscard]] FrameSource sourceOf(const core::PointCloud& cloud, double t_mid) const;
+  [[nodiscard]] FrameSource sourceOf(const core::PointCloud& cloud, double t_mid,
+                                     const core::Vector6d& velocity) const;
   /// The rigid registration of the deskewed source from `T_predicted`.
   [[nodiscard]] RegistrationResult registerRigid(const FrameSource& source,
                                                  const Eigen::Isometry3d& T_predicted) const;
+  /// Rigid registration of `points` from `T_start`, coarse to fine: the
+  /// first, wide gate, then halved at each pass, each from where the last
+  /// ended, down to the learned gate.
+  [[nodiscard]] RegistrationResult registerCoarseToFine(std::span<const Eigen::Vector3d> points,
+                                                        const Eigen::Isometry3d& T_start) const;
   /// True when the sweep's motion changed sharply (motion_change_error,
   /// motion_change_rmse_ratio): the rigid fit at mid-sweep `reference_time`
   /// (s) of a sweep of `duration` s implies another twist, or fits badly.
