@@ -4,7 +4,9 @@
 // advertised as and the messages that came (their stamps and pose counts),
 // once COUNT have come or the server closed. With JUNK=1 in the environment
 // it first sends what no client should (not JSON, unknown channels, binary
-// frames): the server must go on serving it.
+// frames): the server must go on serving it. With GROWING=1, a path that
+// holds as many poses as the last one kept is not counted: COUNT paths then
+// show COUNT - 1 new keyframes, however fast the server sends.
 // Usage: node foxglove_client.js MODULES_DIR PORT TOPIC COUNT
 const path = require("path");
 const [modules, port, topic, count] = process.argv.slice(2);
@@ -47,6 +49,8 @@ client.on("message", (event) => {
   const message = JSON.parse(text);
   const summary = { stamp: Number(event.timestamp), frame_id: message.frame_id };
   if (message.poses) {  // foxglove.PosesInFrame
+    const last = out.messages[out.messages.length - 1];
+    if (process.env.GROWING === "1" && last && last.poses === message.poses.length) return;
     summary.poses = message.poses.length;
     summary.last = message.poses.length ? message.poses[message.poses.length - 1].position : null;
   }

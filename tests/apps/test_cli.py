@@ -1932,8 +1932,8 @@ class LiveView(unittest.TestCase):
 
     MODULES = os.environ.get("DCL_NODE_MODULES", "")
 
-    def client(self, port, topic, count, junk=False):
-        env = dict(os.environ, JUNK="1" if junk else "0")
+    def client(self, port, topic, count, junk=False, growing=False):
+        env = dict(os.environ, JUNK="1" if junk else "0", GROWING="1" if growing else "0")
         return subprocess.Popen(
             ["node", os.path.join(os.path.dirname(__file__), "foxglove_client.js"),
              self.MODULES, str(port), topic, str(count)],
@@ -1955,9 +1955,11 @@ class LiveView(unittest.TestCase):
             line = proc.stderr.readline()
             self.assertIn("live view: ws://127.0.0.1:", line)
             port = int(line.split("ws://127.0.0.1:")[1].split()[0])
-            # One viewer that first sends junk, one per other channel watched.
-            viewers = {"a": self.client(port, "/a/path", 6, junk=True),
-                       "b": self.client(port, "/b/path", 6),
+            # One viewer that first sends junk, one per other channel watched;
+            # the paths' viewers count a path only when it grew (the run sends
+            # them at wall-clock times, which a loaded machine fills slowly).
+            viewers = {"a": self.client(port, "/a/path", 6, junk=True, growing=True),
+                       "b": self.client(port, "/b/path", 6, growing=True),
                        "scan": self.client(port, "/a/scan", 3),
                        "loops": self.client(port, "/b/loops", 2),
                        "map": self.client(port, "/a/map", 2)}
@@ -2004,8 +2006,7 @@ class LiveView(unittest.TestCase):
             self.assertTrue(all(m["frame_id"] == "map" for m in messages))
             # The path advances: more keyframes, and the newest one elsewhere.
             poses = [m["poses"] for m in messages]
-            self.assertEqual(poses, sorted(poses), name)
-            self.assertLess(poses[0], poses[-1], name)
+            self.assertEqual(poses, sorted(set(poses)), name)  # each with more keyframes
             first, last = messages[0]["last"], messages[-1]["last"]
             self.assertGreater(math.dist((first["x"], first["y"]), (last["x"], last["y"])), 1.0)
         # The viewer's junk did not disturb the run.
