@@ -57,8 +57,12 @@ core::Keyframe KeyframeSelector::makeKeyframe(const OdometryResult& frame,
   } else {
     keyframe.covariance.setZero();  // the first keyframe defines the robot's frame
   }
-  keyframe.cloud = voxelFilter(scan, config_.voxel_size);
+  keyframe.cloud = keyframeCloud(scan);
   return keyframe;
+}
+
+core::PointCloud KeyframeSelector::keyframeCloud(const core::PointCloud& scan) const {
+  return voxelFilter(scan, config_.voxel_size);
 }
 
 void KeyframeSelector::accumulate(const OdometryResult& frame) {

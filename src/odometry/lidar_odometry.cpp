@@ -161,7 +161,7 @@ OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan
   }
   // 4. Update velocity and threshold, then the map.
   result.health.sharp_motion = frame_registration.twist.has_value();
-  if (map_.empty() && t_mid != 0.0) first_sweep_ = FirstSweep{clean.cloud, t_mid};
+  if (map_.empty() && t_mid != 0.0) first_sweep_ = FirstSweep{clean.cloud, t_mid, stamp};
   commit(stamp, t_mid, registration, T_predicted, frame_registration.twist, up);
   if (frame_registration.source_points > 0 && registration.inliers > 0) {
     constexpr double kWeight = 0.1;  // about the last ten frames, as rmse_average_
@@ -180,6 +180,7 @@ OdometryResult LidarOdometry::process(double stamp, const core::PointCloud& scan
   result.covariance = covarianceOf(registration, up.has_value() && up_odom_.has_value());
   result.registered = toCloud(frame);
   result.registered.transform(core::expSE3(t_mid * velocity_));  // mid-sweep to stamp
+  result.first_frame_redone = std::exchange(first_frame_redone_, std::nullopt);
   return result;
 }
 
@@ -448,9 +449,15 @@ void LidarOdometry::redoFirstSweep() {
   // undeskewed, and its middle became the odometry frame. With the first
   // velocity known, deskew it properly and move the frame to its stamp.
   const Eigen::Isometry3d T_stamp_mid = core::expSE3(first_sweep_->t_mid * velocity_);
+  const std::vector<Eigen::Vector3d> thinned =
+      thinnedFrame(first_sweep_->cloud, first_sweep_->t_mid);
   map_.clear();
-  map_.addPoints(thinnedFrame(first_sweep_->cloud, first_sweep_->t_mid), T_stamp_mid);
+  map_.addPoints(thinned, T_stamp_mid);
   T_odom_reference_ = T_stamp_mid * T_odom_reference_;
+  // The first frame's result went out undeskewed too: its cloud again, as
+  // process() gives `registered` (thinned at mid-sweep, moved to the stamp).
+  first_frame_redone_ = OdometryResult::Redone{first_sweep_->stamp, toCloud(thinned)};
+  first_frame_redone_->registered.transform(T_stamp_mid);
   first_sweep_.reset();
 }
 

@@ -25,6 +25,12 @@ LocalMapper::LocalMapper(core::RobotId robot, const LocalMapperConfig& config)
 
 MapperUpdate LocalMapper::process(const OdometryResult& frame, const core::PointCloud& scan) {
   MapperUpdate update;
+  // The first keyframe's cloud, deskewed again once the odometry knew its
+  // velocity (before any loop to it is verified: the next frame comes now).
+  if (frame.first_frame_redone && !keyframes_.empty() &&
+      keyframes_.front().stamp == frame.first_frame_redone->stamp) {
+    keyframes_.front().cloud = selector_.keyframeCloud(frame.first_frame_redone->registered);
+  }
   std::optional<core::Keyframe> keyframe = selector_.add(frame, scan);
   if (!keyframe) return update;
   update.keyframe = keyframe->id;

@@ -1,6 +1,7 @@
 // The LiDAR odometry pipeline: real KITTI 00 frames, a simulated VLP-16 run
 // with motion distortion, and bad input.
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -15,6 +16,7 @@
 #include <dcl/core/trajectory.hpp>
 #include <dcl/io/pose_file.hpp>
 #include <dcl/odometry/lidar_odometry.hpp>
+#include <dcl/odometry/local_mapper.hpp>
 #include <dcl/odometry/preprocessing.hpp>
 #include <dcl/sim/presets.hpp>
 #include <dcl/sim/routes.hpp>
@@ -267,6 +269,71 @@ TEST_P(SimulatedFastCorner, TracksACornerTheCarSwingsIntoAfterAStraight) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Worlds, SimulatedFastCorner, ::testing::Values(1u, 2u, 3u));
+
+/// The median distance from a few hundred of `cloud`'s points to the nearest
+/// of `reference`'s (brute force: a test's sizes).
+double medianNearest(const core::PointCloud& cloud, const std::vector<Eigen::Vector3f>& reference) {
+  std::vector<double> nearest;
+  const std::size_t step = std::max<std::size_t>(1, cloud.size() / 400);
+  for (std::size_t i = 0; i < cloud.size(); i += step) {
+    float best = std::numeric_limits<float>::infinity();
+    for (const Eigen::Vector3f& q : reference) best = std::min(best, (cloud.points[i] - q).squaredNorm());
+    nearest.push_back(std::sqrt(static_cast<double>(best)));
+  }
+  std::nth_element(nearest.begin(), nearest.begin() + static_cast<std::ptrdiff_t>(nearest.size() / 2),
+                   nearest.end());
+  return nearest[nearest.size() / 2];
+}
+
+TEST(SimulatedFastStart, TheFirstFrameIsDeskewedAgainOnceTheVelocityIsKnown) {
+  // A robot whose odometry starts at speed (5-6 m/s, the straight before the
+  // fast corner): its first sweep has no velocity to be deskewed with, and
+  // went out smeared by half a metre along the road. Its cloud became the
+  // route's first keyframe, and loops to it (where a teammate's route hands
+  // over to this one's) were decimetres off. The next frame measures the
+  // velocity and gives the first frame's cloud again, deskewed with it.
+  const std::unique_ptr<sim::SimWorld> world = fastCornerWorld(
+      std::filesystem::temp_directory_path() /
+          ("dcl_odometry_fast_start_" + std::to_string(::getpid())),
+      2);
+  const core::Trajectory& truth = world->groundTruth(0);
+  const std::size_t first = firstFastTurn(truth, 30.0) - 80;
+  const core::PointCloud scan = world->scan(0, first);
+  ASSERT_TRUE(scan.hasTime());
+  // The sweep as it was: each point where the sensor was at the stamp.
+  const double stamp = truth.stamp(first);
+  const Eigen::Isometry3d T_world_stamp = truth.pose(first);
+  std::vector<Eigen::Vector3f> exact;
+  for (std::size_t i = 0; i < scan.size(); ++i) {
+    const auto T_world_firing = truth.at(stamp + scan.time[i]);
+    ASSERT_TRUE(T_world_firing.has_value());
+    exact.push_back(
+        (T_world_stamp.inverse() * *T_world_firing * scan.points[i].cast<double>()).cast<float>());
+  }
+  LidarOdometry odometry;
+  const OdometryResult at_first = odometry.process(stamp, scan);
+  ASSERT_TRUE(at_first.health.accepted);
+  EXPECT_FALSE(at_first.first_frame_redone.has_value());
+  const OdometryResult at_second = odometry.process(truth.stamp(first + 1), world->scan(0, first + 1));
+  ASSERT_TRUE(at_second.health.accepted);
+  ASSERT_TRUE(at_second.first_frame_redone.has_value());
+  EXPECT_EQ(at_second.first_frame_redone->stamp, stamp);
+  const double smeared = medianNearest(at_first.registered, exact);
+  const double redone = medianNearest(at_second.first_frame_redone->registered, exact);
+  std::printf("the first frame's cloud against the sweep as it was: %.3f m undeskewed, %.3f m "
+              "deskewed again\n",
+              smeared, redone);
+  EXPECT_LT(redone, 0.5 * smeared);
+  // The route's first keyframe keeps the cloud deskewed again.
+  LocalMapper mapper(core::RobotId(0));
+  (void)mapper.process(at_first);
+  (void)mapper.process(at_second);
+  const core::PointCloud kept =
+      KeyframeSelector(core::RobotId(0)).keyframeCloud(at_second.first_frame_redone->registered);
+  EXPECT_EQ(mapper.keyframes().front().cloud.points, kept.points);
+  const OdometryResult at_third = odometry.process(truth.stamp(first + 2), world->scan(0, first + 2));
+  EXPECT_FALSE(at_third.first_frame_redone.has_value());
+}
 
 /// One way to run KITTI 00's braking turn: a world, a nudge of the route,
 /// a thread count. The test's bound must hold for every one of them.

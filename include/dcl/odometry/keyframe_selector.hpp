@@ -72,6 +72,9 @@ class KeyframeSelector {
     return add(frame, frame.registered);
   }
 
+  /// `scan` as a keyframe stores it (thinned to the keyframe voxel).
+  [[nodiscard]] core::PointCloud keyframeCloud(const core::PointCloud& scan) const;
+
   /// The number of keyframes made so far.
   [[nodiscard]] std::size_t count() const { return count_; }
 

@@ -270,8 +270,11 @@ class LidarOdometry final : public Odometry {
   struct FirstSweep {
     core::PointCloud cloud;  ///< cleaned, in the sensor frame at firing times
     double t_mid = 0.0;      ///< s after the stamp, where it was registered
+    double stamp = 0.0;      ///< s, the frame's
   };
   std::optional<FirstSweep> first_sweep_;
+  /// The first frame deskewed again, for the result of the frame that did it.
+  std::optional<OdometryResult::Redone> first_frame_redone_;
   int frames_since_carving_ = 0;               ///< accepted frames since the map was last carved
   std::optional<Eigen::Vector3d> pending_up_;  ///< the IMU's reading of up for the next scan
   std::optional<Eigen::Vector3d> up_odom_;     ///< up in the odometry frame, from the IMU

@@ -6,6 +6,7 @@
 
 #include <Eigen/Geometry>
 #include <cstddef>
+#include <optional>
 #include <string>
 
 #include <dcl/core/point_cloud.hpp>
@@ -38,6 +39,16 @@ struct OdometryResult {
   /// The frame's scan as registered: deskewed to `stamp`, in the sensor frame,
   /// downsampled as the odometry keeps it (empty for external odometry).
   core::PointCloud registered;
+  /// The first frame went out with no velocity to deskew it by: the frame
+  /// that measures the first velocity carries the first frame's `registered`
+  /// again, deskewed with it, and that frame's stamp (empty otherwise). At
+  /// 10 m/s the first sweep is smeared by a metre, enough to put a loop to
+  /// the route's first keyframe decimetres off.
+  struct Redone {
+    double stamp = 0.0;
+    core::PointCloud registered;
+  };
+  std::optional<Redone> first_frame_redone;
 };
 
 /// A front-end: call `process` once per scan, in time order.
