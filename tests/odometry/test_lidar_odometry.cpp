@@ -277,10 +277,12 @@ double medianNearest(const core::PointCloud& cloud, const std::vector<Eigen::Vec
   const std::size_t step = std::max<std::size_t>(1, cloud.size() / 400);
   for (std::size_t i = 0; i < cloud.size(); i += step) {
     float best = std::numeric_limits<float>::infinity();
-    for (const Eigen::Vector3f& q : reference) best = std::min(best, (cloud.points[i] - q).squaredNorm());
+    for (const Eigen::Vector3f& q : reference)
+      best = std::min(best, (cloud.points[i] - q).squaredNorm());
     nearest.push_back(std::sqrt(static_cast<double>(best)));
   }
-  std::nth_element(nearest.begin(), nearest.begin() + static_cast<std::ptrdiff_t>(nearest.size() / 2),
+  std::nth_element(nearest.begin(),
+                   nearest.begin() + static_cast<std::ptrdiff_t>(nearest.size() / 2),
                    nearest.end());
   return nearest[nearest.size() / 2];
 }
@@ -292,10 +294,10 @@ TEST(SimulatedFastStart, TheFirstFrameIsDeskewedAgainOnceTheVelocityIsKnown) {
   // route's first keyframe, and loops to it (where a teammate's route hands
   // over to this one's) were decimetres off. The next frame measures the
   // velocity and gives the first frame's cloud again, deskewed with it.
-  const std::unique_ptr<sim::SimWorld> world = fastCornerWorld(
-      std::filesystem::temp_directory_path() /
-          ("dcl_odometry_fast_start_" + std::to_string(::getpid())),
-      2);
+  const std::unique_ptr<sim::SimWorld> world =
+      fastCornerWorld(std::filesystem::temp_directory_path() /
+                          ("dcl_odometry_fast_start_" + std::to_string(::getpid())),
+                      2);
   const core::Trajectory& truth = world->groundTruth(0);
   const std::size_t first = firstFastTurn(truth, 30.0) - 80;
   const core::PointCloud scan = world->scan(0, first);
@@ -314,15 +316,17 @@ TEST(SimulatedFastStart, TheFirstFrameIsDeskewedAgainOnceTheVelocityIsKnown) {
   const OdometryResult at_first = odometry.process(stamp, scan);
   ASSERT_TRUE(at_first.health.accepted);
   EXPECT_FALSE(at_first.first_frame_redone.has_value());
-  const OdometryResult at_second = odometry.process(truth.stamp(first + 1), world->scan(0, first + 1));
+  const OdometryResult at_second =
+      odometry.process(truth.stamp(first + 1), world->scan(0, first + 1));
   ASSERT_TRUE(at_second.health.accepted);
   ASSERT_TRUE(at_second.first_frame_redone.has_value());
   EXPECT_EQ(at_second.first_frame_redone->stamp, stamp);
   const double smeared = medianNearest(at_first.registered, exact);
   const double redone = medianNearest(at_second.first_frame_redone->registered, exact);
-  std::printf("the first frame's cloud against the sweep as it was: %.3f m undeskewed, %.3f m "
-              "deskewed again\n",
-              smeared, redone);
+  std::printf(
+      "the first frame's cloud against the sweep as it was: %.3f m undeskewed, %.3f m "
+      "deskewed again\n",
+      smeared, redone);
   EXPECT_LT(redone, 0.5 * smeared);
   // The route's first keyframe keeps the cloud deskewed again.
   LocalMapper mapper(core::RobotId(0));
@@ -331,7 +335,8 @@ TEST(SimulatedFastStart, TheFirstFrameIsDeskewedAgainOnceTheVelocityIsKnown) {
   const core::PointCloud kept =
       KeyframeSelector(core::RobotId(0)).keyframeCloud(at_second.first_frame_redone->registered);
   EXPECT_EQ(mapper.keyframes().front().cloud.points, kept.points);
-  const OdometryResult at_third = odometry.process(truth.stamp(first + 2), world->scan(0, first + 2));
+  const OdometryResult at_third =
+      odometry.process(truth.stamp(first + 2), world->scan(0, first + 2));
   EXPECT_FALSE(at_third.first_frame_redone.has_value());
 }
 

@@ -340,8 +340,7 @@ TEST(RobotNode, StoppedMidRefinementTheRobotsKeepASettlingRoundsLastKeptStep) {
   // refinement is settling: each keeps the last step the group kept, in the
   // round's frame, not the separate odometry frames it held before.
   const auto never = std::numeric_limits<std::size_t>::max();
-  const SwarmRun run =
-      drive(convoy(), {}, 10.0, longFirstRound(), never, {}, {}, refiningFor(1.0));
+  const SwarmRun run = drive(convoy(), {}, 10.0, longFirstRound(), never, {}, {}, refiningFor(1.0));
   for (const auto& node : run.nodes) {
     const auto& c = node->counters();
     EXPECT_EQ(c.at("rounds_ended_by_stop"), 1.0) << core::robotName(node->id());
@@ -472,11 +471,9 @@ TEST(RobotNode, RobotsThatPartSolveAloneWithTheirOwnLaterLoops) {
     for (const auto& [k, v] : node->counters()) std::printf("%s=%g ", k.c_str(), v);
     std::printf("\n");
   }
-
   const double with = costOverOptimum(solved);
   const double without = costOverOptimum(stale);
-  std::printf("cost over the optimum: %.3f solved alone, %.3f kept as they were\n", with,
-              without);
+  std::printf("cost over the optimum: %.3f solved alone, %.3f kept as they were\n", with, without);
   // Not the optimum: each holds the other where they parted, and the
   // inter-robot loops found after the last round wait for a round. Solving
   // alone takes out most of what the kept estimates leave above it (1.29
