@@ -1391,8 +1391,9 @@ class Ping(unittest.TestCase):
     """dcl-slam ping: robot processes over Cyclone DDS on loopback hear each other and get
     every test broadcast exactly once, also when met late and across a restart.
 
-    Each test has its own DDS domain (150..160) and a swarm name with this process id, so
-    parallel test runs stay apart. Timing margins are seconds, never fractions of one."""
+    Each test has its own DDS domain (50..60, below 102: the fixed ports of higher
+    domains are among the ephemeral ports any socket may hold) and a swarm name with
+    this process id, so parallel test runs stay apart. Timing margins are seconds, never fractions of one."""
 
     MESSAGES = 5
     PERIOD = 0.2
@@ -1431,7 +1432,7 @@ class Ping(unittest.TestCase):
 
     def test_three_robots_exchange(self):
         before = time.time()
-        procs = [self.start(robot, 150, 5) for robot in range(3)]
+        procs = [self.start(robot, 50, 5) for robot in range(3)]
         reports = [self.finish(p) for p in procs]
         after = time.time()
         for robot, r in enumerate(reports):
@@ -1455,9 +1456,9 @@ class Ping(unittest.TestCase):
             self.assertLessEqual(r["incarnation"], int((after - self.EPOCH_2024) * 10) + 1)
 
     def test_late_joiner_gets_everything(self):
-        early = [self.start(robot, 151, 10) for robot in (0, 1)]
+        early = [self.start(robot, 51, 10) for robot in (0, 1)]
         time.sleep(3.5)  # robots 0 and 1 send for 0.8 s after they start
-        late = self.start(2, 151, 5)
+        late = self.start(2, 51, 5)
         r2 = self.finish(late)
         r0, r1 = (self.finish(p) for p in early)
         for r in (r0, r1):
@@ -1473,12 +1474,12 @@ class Ping(unittest.TestCase):
         self.assertEqual(r2["duplicates"] + r0["duplicates"] + r1["duplicates"], 0)
 
     def test_killed_robot_restarts_and_catches_up(self):
-        steady = [self.start(robot, 152, 11) for robot in (0, 2)]
-        first = self.start(1, 152, 60, "--incarnation", "1000")
+        steady = [self.start(robot, 52, 11) for robot in (0, 2)]
+        first = self.start(1, 52, 60, "--incarnation", "1000")
         time.sleep(3)
         first.send_signal(signal.SIGKILL)
         first.communicate(timeout=30)
-        second = self.start(1, 152, 5, "--incarnation", "1001")
+        second = self.start(1, 52, 5, "--incarnation", "1001")
         r1 = self.finish(second)
         r0, r2 = (self.finish(p) for p in steady)
         # The new life has no memory: it gets everything again, once.
@@ -1503,7 +1504,7 @@ class Ping(unittest.TestCase):
                     "messenger:\n  heartbeat_period: 0.1\n")
         self.addCleanup(os.unlink, f.name)
         proc = subprocess.Popen([DCL_SLAM, "--config", f.name, "ping", "--robot", "3",
-                                 "--domain", "153", "--interface", "lo", "--duration", "120"],
+                                 "--domain", "53", "--interface", "lo", "--duration", "120"],
                                 stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
         self.addCleanup(self.stop, proc)
         time.sleep(2)
@@ -1511,7 +1512,7 @@ class Ping(unittest.TestCase):
         out, err = proc.communicate(timeout=30)
         self.assertEqual(proc.returncode, 0, err)
         self.assertIn("robot 3", out)
-        self.assertIn("swarm 'from-config', DDS domain 153 on lo", out)
+        self.assertIn("swarm 'from-config', DDS domain 53 on lo", out)
         self.assertIn("interrupted", out)
         self.assertIn("neighbours heard: none", out)
         # heartbeat_period 0.1 s from the config: far more beats than the default 1 s gives.
@@ -1536,7 +1537,7 @@ class Ping(unittest.TestCase):
                 (["--interface", "lo"], {"CYCLONEDDS_URI": "<Bogus/>"}, "Bogus: unknown element")):
             with self.subTest(args=args, env=env):
                 proc = subprocess.run([DCL_SLAM, "ping", "--robot", "0", "--duration", "1",
-                                       "--domain", "154", *args], capture_output=True, text=True,
+                                       "--domain", "54", *args], capture_output=True, text=True,
                                       timeout=60, env={**os.environ, **env})
                 self.assertEqual(proc.returncode, 1)
                 lines = proc.stderr.strip().splitlines()
@@ -1752,7 +1753,7 @@ class ExternalFrontEnd(unittest.TestCase):
         self.assertFollowsTheFrontEnd(out, "b")
         out = os.path.join(self.tmp.name, "robot")
         run("robot", "--dataset", self.dataset, "--robot", "a", "--out", out, "--max-frames", "120",
-            "--rate", "20", "--linger", "1", "--settle", "0", "--domain", "178", "--interface", "lo",
+            "--rate", "20", "--linger", "1", "--settle", "0", "--domain", "78", "--interface", "lo",
             "--swarm", f"ext-{os.getpid()}")
         self.assertFollowsTheFrontEnd(os.path.join(out, "a"), "a")
 

@@ -1,7 +1,7 @@
 """End-to-end tests of one robot per process over Cyclone DDS: `dcl-slam robot`
 and `dcl-slam swarm`, run as a user runs them, on the simulated small-3 swarm.
 
-Robot processes talk on loopback in DDS domain 162 (the ping tests use 150..160),
+Robot processes talk on loopback in DDS domain 62 (the ping tests use 50..60),
 each swarm under its own name, so parallel test runs stay apart."""
 import json
 import math
@@ -15,7 +15,7 @@ import time
 import unittest
 
 DCL_SLAM = os.environ["DCL_SLAM"]
-DOMAIN = "162"
+DOMAIN = "62"
 
 
 def run(*args, check=True, timeout=300):
@@ -281,7 +281,7 @@ class Swarm(unittest.TestCase):
 class Ros2Robot(unittest.TestCase):
     """dcl-slam robot --ros2: a live robot fed over ROS 2 by `dcl-slam play`,
     another process publishing a simulated robot's scans as its LiDAR driver
-    would (ROS 2 domain 173, the swarm's 174, on loopback)."""
+    would (ROS 2 domain 73, the swarm's 74, on loopback)."""
 
     SCANS = 200
 
@@ -320,8 +320,8 @@ class Ros2Robot(unittest.TestCase):
         # `play` process over ROS 2 on the swarm clock with the dataset's stamps.
         out = os.path.join(self.tmp.name, "two")
         _, stdout, _ = run("swarm", "--ros2", "--dataset", self.dataset, "--out", out,
-                           "--rate", "1", "--linger", "4", "--ros-domain", "179",
-                           "--domain", "180", "--json")
+                           "--rate", "1", "--linger", "4", "--ros-domain", "79",
+                           "--domain", "80", "--json")
         live = json.loads(stdout)
         self.assertEqual(live["scans"], "ros2")
         _, stdout, _ = run("run", "--dataset", self.dataset, "--out",
@@ -360,7 +360,7 @@ class Ros2Robot(unittest.TestCase):
         break_robot_b_scans(broken)
         out = os.path.join(self.tmp.name, "broken-out")
         code, _, err = run("swarm", "--ros2", "--dataset", broken, "--out", out,
-                           "--ros-domain", "181", "--domain", "182", check=False, timeout=120)
+                           "--ros-domain", "81", "--domain", "82", check=False, timeout=120)
         self.assertEqual(code, 1)
         lines = err.strip().splitlines()
         self.assertIn("the player of robot 'b'", lines[-1])
@@ -372,9 +372,9 @@ class Ros2Robot(unittest.TestCase):
     def test_a_live_robot_tracks_the_scans_it_is_sent(self):
         out = os.path.join(self.tmp.name, "out")
         topic = f"/dcl_test_{os.getpid()}/points"
-        robot = self.live_robot(out, "173", "174", "ros2-test", "--points", topic)
+        robot = self.live_robot(out, "73", "74", "ros2-test", "--points", topic)
         _, played, _ = run("play", "--dataset", self.dataset, "--robot", "a", "--rate", "2",
-                           "--ros-domain", "173", "--interface", "lo", "--points", topic,
+                           "--ros-domain", "73", "--interface", "lo", "--points", topic,
                            timeout=120)
         # "scan i stamped START + (t_i - FIRST) / RATE"
         words = played.strip().splitlines()[-1].replace("(", " ").replace(")", " ").split()
@@ -408,10 +408,10 @@ class Ros2Robot(unittest.TestCase):
         # and the robot says so while it runs and when it stops.
         out = os.path.join(self.tmp.name, "silent_imu")
         topic = f"/dcl_test_{os.getpid()}/silent"
-        robot = self.live_robot(out, "183", "184", "ros2-imu", "--points", topic + "/points",
+        robot = self.live_robot(out, "83", "84", "ros2-imu", "--points", topic + "/points",
                                 "--imu", topic + "/imu")
         run("play", "--dataset", self.dataset, "--robot", "a", "--rate", "2", "--ros-domain",
-            "183", "--interface", "lo", "--points", topic + "/points", timeout=120)
+            "83", "--interface", "lo", "--points", topic + "/points", timeout=120)
         err, report = self.stop_live_robot(robot, out)
         counters = report["counters"]
         self.assertGreaterEqual(counters["scans_received"], self.SCANS - 5)
@@ -430,10 +430,10 @@ class Ros2Robot(unittest.TestCase):
         # perfect front-end, so the trajectory is the ground truth's keyframes.
         out = os.path.join(self.tmp.name, "external")
         topic = f"/dcl_test_{os.getpid()}/ext"
-        robot = self.live_robot(out, "175", "176", "ros2-ext", "--points", topic + "/points",
+        robot = self.live_robot(out, "75", "76", "ros2-ext", "--points", topic + "/points",
                                 "--odometry", topic + "/odom")
         _, played, _ = run("play", "--dataset", self.dataset, "--robot", "a", "--rate", "2",
-                           "--odometry", topic + "/odom", "--ros-domain", "175", "--interface",
+                           "--odometry", topic + "/odom", "--ros-domain", "75", "--interface",
                            "lo", "--points", topic + "/points", timeout=120)
         words = played.strip().splitlines()[-1].replace("(", " ").replace(")", " ").split()
         start, first = float(words[words.index("stamped") + 1]), float(words[words.index("-") + 1])

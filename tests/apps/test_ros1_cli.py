@@ -1,6 +1,6 @@
 """End to end on ROS 1, as a ROS user runs it: Debian's `roscore`, two robots'
 scans played from bags by `rosbag play`, two `dcl-slam robot --ros1`
-processes (talking with each other over Cyclone DDS, domain 177, on
+processes (talking with each other over Cyclone DDS, domain 77, on
 loopback), and a rospy node listening to what they publish."""
 import json
 import math
@@ -97,7 +97,7 @@ class Ros1Robot(unittest.TestCase):
         for i, r in enumerate(self.ROBOTS):
             robots[r] = self.spawn(
                 [DCL_SLAM, "robot", "--ros1", "--robot", r, "--id", str(i), "--out", out,
-                 "--points", f"/{r}/points", "--imu", f"/{r}/imu", "--domain", "177",
+                 "--points", f"/{r}/points", "--imu", f"/{r}/imu", "--domain", "77",
                  "--interface", "lo",
                  "--swarm", f"ros1-test-{os.getpid()}",
                  *(["--frame-ids", "world,b_odom,b_base,b_lidar"] if r == "b" else [])])
@@ -189,7 +189,7 @@ class Ros1Robot(unittest.TestCase):
         start = time.time()
         proc = subprocess.run(
             [DCL_SLAM, "--config", config, "robot", "--ros1", "--robot", "c", "--id",
-             "2", "--out", os.path.join(self.tmp.name, "nomaster"), "--domain", "177",
+             "2", "--out", os.path.join(self.tmp.name, "nomaster"), "--domain", "77",
              "--interface", "lo"], env=env, capture_output=True, text=True, timeout=60)
         self.assertNotEqual(proc.returncode, 0)
         self.assertIn("no master answers at http://127.0.0.1:", proc.stderr)

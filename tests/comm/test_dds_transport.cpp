@@ -2,6 +2,9 @@
 // QoS paths and separation of swarms and domains. Every test has its own DDS
 // domain (ctest runs tests in parallel) and a swarm name unique to the
 // process (so that two test runs on one machine do not hear each other).
+// The test domains lie in 0..101: a domain's fixed ports (7400 + 250 x
+// domain and up) stay below Linux's ephemeral ports (32768 and up), which
+// any other socket on the machine may hold (domain 153's 45651 was seen taken).
 //
 // Transports of one process meet inside Cyclone without the network, so one
 // test starts this executable again as an echo peer to go through the
@@ -226,7 +229,7 @@ bool receiveUntil(DdsTransport& t, Inbox& inbox, const std::function<bool()>& do
 }
 
 TEST(DdsTransport, DiscoversPeersAndRoutesBroadcastsAndUnicasts) {
-  const DdsConfig config = loopback(171);
+  const DdsConfig config = loopback(71);
   DdsTransport a(robot(0), config);
   DdsTransport b(robot(1), config);
   DdsTransport c(robot(2), config);
@@ -266,7 +269,7 @@ TEST(DdsTransport, DiscoversPeersAndRoutesBroadcastsAndUnicasts) {
 }
 
 TEST(DdsTransport, CarriesRealPayloadsIntactOnBothQosPaths) {
-  const DdsConfig config = loopback(172);
+  const DdsConfig config = loopback(72);
   DdsTransport a(robot(3), config);
   DdsTransport b(robot(7), config);
   std::vector<Inbox> inbox(2);
@@ -318,7 +321,7 @@ TEST(DdsTransport, CarriesRealPayloadsIntactOnBothQosPaths) {
 }
 
 TEST(DdsTransport, TalksToAnotherProcessOverLoopback) {
-  const DdsConfig config = loopback(177);
+  const DdsConfig config = loopback(77);
   DdsTransport a(robot(0), config);
   EchoPeerProcess peer(config);
   ASSERT_TRUE(peer.started());
@@ -364,13 +367,13 @@ TEST(DdsTransport, TalksToAnotherProcessOverLoopback) {
 }
 
 TEST(DdsTransport, KeepsSwarmsAndDomainsApart) {
-  DdsConfig alpha = loopback(173);
+  DdsConfig alpha = loopback(73);
   DdsConfig beta = alpha;
   beta.swarm += "-beta";
   DdsConfig other_domain = alpha;
-  other_domain.domain = 174;
+  other_domain.domain = 74;
 
-  // Robot 0 talks in swarm alpha, domain 173. Each listener elsewhere has a
+  // Robot 0 talks in swarm alpha, domain 73. Each listener elsewhere has a
   // partner of its own that it demonstrably hears meanwhile.
   DdsTransport speaker(robot(0), alpha);
   DdsTransport peer(robot(1), alpha);
@@ -411,7 +414,7 @@ TEST(DdsTransport, KeepsSwarmsAndDomainsApart) {
 }
 
 TEST(DdsTransport, WaitReturnsWhenASampleArrivesAndTimesOutOtherwise) {
-  const DdsConfig config = loopback(175);
+  const DdsConfig config = loopback(75);
   DdsTransport a(robot(0), config);
   DdsTransport b(robot(1), config);
   std::vector<Inbox> inbox(2);
@@ -439,7 +442,7 @@ std::string errorOf(const std::function<void()>& make) {
 
 TEST(DdsTransport, RejectsInvalidConfigurationsNamingTheField) {
   const auto invalid = [](const std::function<void(DdsConfig&)>& change) {
-    DdsConfig config = loopback(176);
+    DdsConfig config = loopback(76);
     change(config);
     return errorOf([&] { DdsTransport t(robot(0), config); });
   };
@@ -458,10 +461,10 @@ TEST(DdsTransport, RejectsInvalidConfigurationsNamingTheField) {
   EXPECT_NE(missing.find("nosuchif0"), std::string::npos) << missing;
 
   // One domain, one configuration per process.
-  DdsTransport first(robot(0), loopback(176));
+  DdsTransport first(robot(0), loopback(76));
   const std::string clash = invalid([](DdsConfig& c) { c.interface = "eth7"; });
   EXPECT_NE(clash.find("'interface'"), std::string::npos) << clash;
-  EXPECT_NE(errorOf([] { DdsTransport t(core::RobotId(), loopback(176)); }).find("robot id"),
+  EXPECT_NE(errorOf([] { DdsTransport t(core::RobotId(), loopback(76)); }).find("robot id"),
             std::string::npos);
   EXPECT_NE(errorOf([&] {
               first.send(core::RobotId(), MessageKind::heartbeat, kProbe);

@@ -1,7 +1,8 @@
 // The ROS 2 node on DDS: two nodes of this process on loopback, in a domain of
-// their own (170), exchange each kind of message with ROS 2's QoS profiles.
+// their own (70), exchange each kind of message with ROS 2's QoS profiles.
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <functional>
 #include <limits>
 #include <optional>
@@ -28,9 +29,12 @@ namespace {
 
 using namespace std::chrono_literals;
 
+/// The domain of this file's nodes and plain DDS readers.
+constexpr std::uint32_t kDomain = 70;
+
 NodeConfig loopback() {
   NodeConfig config;
-  config.domain = 170;
+  config.domain = kDomain;
   config.interface = "lo";
   return config;
 }
@@ -138,7 +142,7 @@ TEST(Ros2Node, SamplesGoOnTheWireAsRos2sPlainLittleEndianCdr) {
   Node a(loopback());
   const std::string name = topic("wire");
   a.advertise<Odometry>(name, Qos::reliable);
-  const dds_entity_t participant = dds_create_participant(170, nullptr, nullptr);
+  const dds_entity_t participant = dds_create_participant(kDomain, nullptr, nullptr);
   ASSERT_GT(participant, 0);
   const dds_entity_t t = dds_create_topic(participant, &nav_msgs_msg_dds__Odometry__desc,
                                           ddsTopicName(name).c_str(), nullptr, nullptr);
@@ -182,7 +186,7 @@ TEST(Ros2Node, ItNamesItselfAndItsEntitiesOnRosDiscoveryInfo) {
   a.advertise<Odometry>(topic("announced_odometry"), Qos::reliable);
   a.advertise<Path>(topic("announced_path"), Qos::transient_local);
   a.subscribe<PointCloud2>(topic("announced_points"), Qos::sensor_data, [](PointCloud2&&) {});
-  const dds_entity_t participant = dds_create_participant(170, nullptr, nullptr);
+  const dds_entity_t participant = dds_create_participant(kDomain, nullptr, nullptr);
   ASSERT_GT(participant, 0);
   const dds_entity_t t =
       dds_create_topic(participant, &rmw_dds_common_msg_dds__ParticipantEntitiesInfo__desc,
