@@ -1207,24 +1207,32 @@ class Pcm(unittest.TestCase):
 
 
 
-class Loops(unittest.TestCase):
-    """dcl-slam bench loops: place search, verification and PCM end to end on
-    the perceptual-aliasing corridor, where identical blocks repeat every 48 m
-    and only the cars parked along it for a while (traffic) tell a place from
-    its repeats."""
+class AliasingCorridor(unittest.TestCase):
+    """The perceptual-aliasing corridor, where identical blocks repeat every
+    48 m and only the cars parked along it for a while (traffic) tell a place
+    from its repeats, simulated into a folder of its own per test class."""
 
     @classmethod
     def setUpClass(cls):
         cls.tmp = tempfile.TemporaryDirectory()
         cls.dataset = os.path.join(cls.tmp.name, "aliasing-3")
         run("simulate", "--preset", "aliasing-3", "--traffic", "1", "--out", cls.dataset)
-        cls.out = os.path.join(cls.tmp.name, "loops")
-        _, stdout, _ = run("bench", "loops", "--dataset", cls.dataset, "--out", cls.out, "--json")
-        cls.metrics = json.loads(stdout)
 
     @classmethod
     def tearDownClass(cls):
         cls.tmp.cleanup()
+
+
+class Loops(AliasingCorridor):
+    """dcl-slam bench loops: place search, verification and PCM end to end on
+    the aliasing corridor."""
+
+    @classmethod
+    def setUpClass(cls):
+        super().setUpClass()
+        cls.out = os.path.join(cls.tmp.name, "loops")
+        _, stdout, _ = run("bench", "loops", "--dataset", cls.dataset, "--out", cls.out, "--json")
+        cls.metrics = json.loads(stdout)
 
     def test_no_false_loop_survives_while_true_ones_do(self):
         loops = self.metrics["loops"]
@@ -1254,20 +1262,10 @@ class Loops(unittest.TestCase):
         self.assertLess(self.metrics["loops"]["wire_bytes_mean"], 25000)
 
 
-class LoopsLive(unittest.TestCase):
-    """dcl-slam run on the perceptual-aliasing corridor of Loops, its robots
-    live over the simulated radio (a test of its own, so that ctest runs it
-    beside Loops' offline bench)."""
-
-    @classmethod
-    def setUpClass(cls):
-        cls.tmp = tempfile.TemporaryDirectory()
-        cls.dataset = os.path.join(cls.tmp.name, "aliasing-3")
-        run("simulate", "--preset", "aliasing-3", "--traffic", "1", "--out", cls.dataset)
-
-    @classmethod
-    def tearDownClass(cls):
-        cls.tmp.cleanup()
+class LoopsLive(AliasingCorridor):
+    """dcl-slam run on the aliasing corridor, its robots live over the
+    simulated radio (a test of its own, so that ctest runs it beside Loops'
+    offline bench)."""
 
     def test_robots_running_live_keep_no_false_loop(self):
         # Live, a robot matches a neighbour's place before either has passed
