@@ -1,7 +1,8 @@
 # The two commands of the README, and a few conveniences.
 #   make demo   install what the program needs, build only it, run the main job
 #   make test   install what is missing, build, run the whole test suite
-#               (ctest, then every decoder's libFuzzer target for 20 s)
+#               (ctest while the fuzzers build, then every decoder's
+#               libFuzzer target for 20 s)
 
 BUILD_DIR ?= build
 JOBS ?= $(shell nproc)
@@ -28,9 +29,17 @@ demo:
 	cmake --build $(BUILD_DIR) -j $(JOBS) --target dcl-slam
 	$(BUILD_DIR)/apps/dcl-slam demo
 
+# The fuzzers' clang build runs beside ctest at the lowest priority: it takes
+# the cycles the tests leave (the live robots' tests wait on real time), and
+# the tests keep their cores whenever they want them. It has its own process
+# group, which a failing ctest stops.
+FUZZ_BUILD_LOG = $(BUILD_DIR)/fuzz-build.log
 test: build
 	@scripts/setup --npm-prefix $(BUILD_DIR)/npm
-	ctest --test-dir $(BUILD_DIR) --output-on-failure -j $(JOBS)
+	@setsid nice -n 19 scripts/fuzz --build-only >$(FUZZ_BUILD_LOG) 2>&1 & fuzz=$$!; \
+	  ctest --test-dir $(BUILD_DIR) --output-on-failure -j $(JOBS) || \
+	    { kill -- -$$fuzz 2>/dev/null; exit 1; }; \
+	  wait $$fuzz || { tail -n 40 $(FUZZ_BUILD_LOG); echo "fuzzers' build failed" >&2; exit 1; }
 	scripts/fuzz --seconds 20
 
 bench: setup

@@ -49,11 +49,6 @@ double cycleMahalanobis(const Eigen::Isometry3d& z_ik, const core::Matrix6d& sig
 
 }  // namespace
 
-LoopId loopId(const Factor& loop) {
-  if (loop.to.robot < loop.from.robot) return {loop.to, loop.from};
-  return {loop.from, loop.to};
-}
-
 Factor invertFactor(const Factor& factor) {
   const core::Matrix6d ad_inverse = core::adjoint(factor.T_from_to.inverse());
   return {factor.to, factor.from, factor.T_from_to.inverse(),

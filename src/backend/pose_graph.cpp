@@ -18,6 +18,11 @@ std::string_view toString(FactorKind kind) {
   return "unknown";
 }
 
+LoopId loopId(const Factor& loop) {
+  if (loop.to.robot < loop.from.robot) return {loop.to, loop.from};
+  return {loop.from, loop.to};
+}
+
 void PoseGraph::addNode(const core::PoseKey& key, const Eigen::Isometry3d& T_world_node) {
   nodes_[key] = T_world_node;
 }

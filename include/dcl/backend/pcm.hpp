@@ -86,12 +86,6 @@ struct PcmConfig {
   }
 };
 
-/// A loop's identity: its two keys, the lower robot's first.
-using LoopId = std::pair<core::PoseKey, core::PoseKey>;
-
-/// The identity of an inter-robot loop factor (either orientation).
-LoopId loopId(const Factor& loop);
-
 /// The same measurement seen from its other end: T_to_from, with the
 /// information carried over (Omega' = Ad(T)^-T Omega Ad(T)^-1).
 Factor invertFactor(const Factor& factor);

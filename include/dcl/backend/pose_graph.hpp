@@ -19,6 +19,7 @@
 #include <map>
 #include <set>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include <dcl/core/ids.hpp>
@@ -52,6 +53,12 @@ struct Factor {
   core::Matrix6d information = core::Matrix6d::Identity();
   FactorKind kind = FactorKind::odometry;  ///< default odometry
 };
+
+/// A loop's identity: its two keys, the lower robot's first.
+using LoopId = std::pair<core::PoseKey, core::PoseKey>;
+
+/// The identity of an inter-robot loop factor (either orientation).
+LoopId loopId(const Factor& loop);
 
 /// Nodes with their current estimates T_world_node, factors, and the nodes held fixed.
 ///

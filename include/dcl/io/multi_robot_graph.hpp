@@ -16,7 +16,6 @@
 #include <set>
 #include <string>
 
-#include <dcl/backend/pcm.hpp>
 #include <dcl/backend/pose_graph.hpp>
 
 namespace dcl::io {
