@@ -1,4 +1,5 @@
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 
@@ -21,23 +22,86 @@ std::size_t VoxelHash::operator()(const Voxel& voxel) const noexcept {
 }
 
 VoxelHashMap::VoxelHashMap(double voxel_size, int max_points_per_voxel)
-    : voxel_size_(voxel_size), max_points_per_voxel_(std::max(1, max_points_per_voxel)) {}
+    : voxel_size_(voxel_size),
+      max_points_per_voxel_(std::max(1, max_points_per_voxel)),
+      stride_(static_cast<std::size_t>(max_points_per_voxel_)) {}
+
+void VoxelHashMap::clear() {
+  slots_.clear();
+  shift_ = 64;
+  keys_.clear();
+  counts_.clear();
+  points_.clear();
+  free_.clear();
+  voxels_ = 0;
+}
+
+void VoxelHashMap::insertSlot(std::uint32_t block) {
+  std::size_t i = home(keys_[block]);
+  while (slots_[i].block != kNone) i = (i + 1) & (slots_.size() - 1);
+  slots_[i] = Slot{keys_[block], block};
+}
+
+void VoxelHashMap::rehash(std::size_t slots) {
+  slots_.assign(slots, Slot{});
+  shift_ = 64 - std::countr_zero(slots);
+  for (std::uint32_t block = 0; block < counts_.size(); ++block) {
+    if (counts_[block] > 0) insertSlot(block);
+  }
+}
+
+std::uint32_t VoxelHashMap::findOrAdd(const Voxel& voxel) {
+  if (const std::uint32_t block = find(voxel); block != kNone) return block;
+  if (2 * (voxels_ + 1) > slots_.size()) rehash(std::max<std::size_t>(64, 2 * slots_.size()));
+  std::uint32_t block = 0;
+  if (!free_.empty()) {
+    block = free_.back();
+    free_.pop_back();
+    keys_[block] = voxel;
+  } else {
+    block = static_cast<std::uint32_t>(counts_.size());
+    keys_.push_back(voxel);
+    counts_.push_back(0);
+    points_.resize(points_.size() + stride_);
+  }
+  insertSlot(block);
+  ++voxels_;
+  return block;
+}
+
+void VoxelHashMap::releaseBlock(std::uint32_t block) {
+  counts_[block] = 0;
+  free_.push_back(block);
+  --voxels_;
+  // Backward-shift deletion: each entry after the hole that may sit in it
+  // (its home is not between the hole and itself) moves into it.
+  const std::size_t mask = slots_.size() - 1;
+  std::size_t hole = home(keys_[block]);
+  while (slots_[hole].block != block) hole = (hole + 1) & mask;
+  for (std::size_t i = (hole + 1) & mask; slots_[i].block != kNone; i = (i + 1) & mask) {
+    const std::size_t wanted = home(slots_[i].key);
+    if (((i - wanted) & mask) >= ((i - hole) & mask)) {
+      slots_[hole] = slots_[i];
+      hole = i;
+    }
+  }
+  slots_[hole] = Slot{};
+}
 
 void VoxelHashMap::addPoints(std::span<const Eigen::Vector3d> points) {
   // Points of one voxel are kept at least this far apart, so a voxel's budget
   // spreads over its volume instead of piling up where the sensor dwells.
   const double min_spacing = voxel_size_ / std::sqrt(static_cast<double>(max_points_per_voxel_));
   const double min_spacing2 = min_spacing * min_spacing;
-  const auto max_points = static_cast<std::size_t>(max_points_per_voxel_);
   for (const Eigen::Vector3d& point : points) {
-    VoxelPoints& voxel = voxels_[voxelOf(point, voxel_size_)];
-    if (voxel.size() >= max_points) continue;
-    const bool crowded = std::any_of(voxel.begin(), voxel.end(), [&](const Eigen::Vector3d& p) {
+    const std::uint32_t block = findOrAdd(voxelOf(point, voxel_size_));
+    const std::span<const Eigen::Vector3d> held = pointsOf(block);
+    if (held.size() >= stride_) continue;
+    const bool crowded = std::any_of(held.begin(), held.end(), [&](const Eigen::Vector3d& p) {
       return (p - point).squaredNorm() < min_spacing2;
     });
     if (crowded) continue;
-    if (voxel.empty()) voxel.reserve(max_points);
-    voxel.push_back(point);
+    points_[std::size_t{block} * stride_ + counts_[block]++] = point;
   }
 }
 
@@ -51,9 +115,10 @@ void VoxelHashMap::addPoints(std::span<const Eigen::Vector3d> points,
 
 void VoxelHashMap::removeFarFrom(const Eigen::Vector3d& position, double max_distance) {
   const double max_distance2 = max_distance * max_distance;
-  std::erase_if(voxels_, [&](const auto& entry) {
-    return entry.second.empty() || (entry.second.front() - position).squaredNorm() > max_distance2;
-  });
+  for (std::uint32_t block = 0; block < counts_.size(); ++block) {
+    if (counts_[block] > 0 && (first(block) - position).squaredNorm() > max_distance2)
+      releaseBlock(block);
+  }
 }
 
 std::optional<Neighbor> VoxelHashMap::nearest(const Eigen::Vector3d& query) const {
@@ -83,15 +148,16 @@ std::vector<Eigen::Vector3d> VoxelHashMap::neighbors(const Eigen::Vector3d& quer
 std::vector<Eigen::Vector3d> VoxelHashMap::pointCloud() const {
   std::vector<Eigen::Vector3d> points;
   points.reserve(pointCount());
-  for (const auto& [voxel, voxel_points] : voxels_) {
-    points.insert(points.end(), voxel_points.begin(), voxel_points.end());
+  for (std::uint32_t block = 0; block < counts_.size(); ++block) {
+    const std::span<const Eigen::Vector3d> held = pointsOf(block);
+    points.insert(points.end(), held.begin(), held.end());
   }
   return points;
 }
 
 std::size_t VoxelHashMap::pointCount() const {
   std::size_t count = 0;
-  for (const auto& entry : voxels_) count += entry.second.size();
+  for (const std::uint32_t n : counts_) count += n;
   return count;
 }
 

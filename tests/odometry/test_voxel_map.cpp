@@ -1,5 +1,10 @@
 // The voxel hash map of the local world.
 
+#include <cstddef>
+#include <iterator>
+#include <map>
+#include <random>
+#include <tuple>
 #include <vector>
 
 #include <gtest/gtest.h>
@@ -59,6 +64,57 @@ TEST(VoxelHashMap, AddsTransformedPointsAndRemovesFarVoxels) {
   EXPECT_NEAR(map.pointCloud()[0].x(), 100.5, 1e-12);
   map.clear();
   EXPECT_TRUE(map.empty());
+}
+
+// The odometry's use of the map, a car driving along a street: points added
+// ahead, voxels dropped behind and points carved out around it, frame after
+// frame, so that voxels leave the table and others take their slots and
+// blocks. After every frame the map holds exactly the points a plain
+// reference model of it holds, and finds each one from the voxels around it.
+TEST(VoxelHashMap, HoldsWhatItWasGivenThroughManyAdditionsAndRemovals) {
+  constexpr double kVoxel = 0.5;
+  VoxelHashMap map(kVoxel, 3);
+  std::map<std::tuple<int, int, int>, std::vector<Eigen::Vector3d>> model;
+  std::mt19937 random(7);
+  std::uniform_real_distribution<double> around(-6.0, 6.0);
+  for (int frame = 0; frame < 60; ++frame) {
+    const Eigen::Vector3d car(0.5 * frame, 0.0, 0.0);
+    std::vector<Eigen::Vector3d> points;
+    for (int i = 0; i < 400; ++i)
+      points.emplace_back(car.x() + around(random), around(random), 0.25 * around(random));
+    map.addPoints(points);
+    for (const Eigen::Vector3d& p : points) {  // the same rules, kept by hand
+      const Voxel v = voxelOf(p, kVoxel);
+      auto& held = model[{v.x(), v.y(), v.z()}];
+      if (held.size() >= 3) continue;
+      bool crowded = false;
+      for (const Eigen::Vector3d& q : held) crowded |= (q - p).squaredNorm() < kVoxel * kVoxel / 3;
+      if (!crowded) held.push_back(p);
+    }
+    const auto carve = [&](const Eigen::Vector3d& p) { return p.y() > 0.0 && p.z() > 0.5; };
+    const std::size_t carved = map.removeNear(car, 3.0, carve);
+    std::size_t carved_by_hand = 0;
+    for (auto it = model.begin(); it != model.end();) {
+      auto& held = it->second;
+      if ((held.front() - car).squaredNorm() <= 9.0) carved_by_hand += std::erase_if(held, carve);
+      if (!held.empty() && (held.front() - car).squaredNorm() > 7.0 * 7.0) held.clear();
+      it = held.empty() ? model.erase(it) : std::next(it);
+    }
+    map.removeFarFrom(car, 7.0);
+    EXPECT_EQ(carved, carved_by_hand) << frame;
+    ASSERT_EQ(map.size(), model.size()) << frame;
+    std::size_t points_by_hand = 0;
+    for (const auto& [voxel, held] : model) {
+      points_by_hand += held.size();
+      for (const Eigen::Vector3d& p : held) {
+        const auto nearest = map.nearest(p);
+        ASSERT_TRUE(nearest.has_value()) << frame;
+        EXPECT_EQ(nearest->squared_distance, 0.0) << frame;
+      }
+    }
+    EXPECT_EQ(map.pointCount(), points_by_hand) << frame;
+    EXPECT_EQ(map.pointCloud().size(), points_by_hand) << frame;
+  }
 }
 
 }  // namespace

@@ -7,11 +7,11 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cstddef>
-#include <iterator>
+#include <cstdint>
 #include <optional>
 #include <span>
-#include <unordered_map>
 #include <vector>
 
 namespace dcl::odometry {
@@ -55,12 +55,15 @@ class VoxelHashMap {
   std::size_t removeNear(const Eigen::Vector3d& position, double radius, Predicate&& remove) {
     const double radius2 = radius * radius;
     std::size_t removed = 0;
-    for (auto it = voxels_.begin(); it != voxels_.end();) {
-      VoxelPoints& points = it->second;
-      if (!points.empty() && (points.front() - position).squaredNorm() <= radius2) {
-        removed += static_cast<std::size_t>(std::erase_if(points, remove));
-      }
-      it = points.empty() ? voxels_.erase(it) : std::next(it);
+    for (std::uint32_t block = 0; block < counts_.size(); ++block) {
+      if (counts_[block] == 0 || (first(block) - position).squaredNorm() > radius2) continue;
+      // In place, the survivors keep their order.
+      const std::span<Eigen::Vector3d> points = pointsOf(block);
+      const auto kept = std::remove_if(points.begin(), points.end(), remove);
+      const auto gone = static_cast<std::size_t>(points.end() - kept);
+      removed += gone;
+      counts_[block] -= static_cast<std::uint32_t>(gone);
+      if (counts_[block] == 0) releaseBlock(block);
     }
     return removed;
   }
@@ -81,9 +84,9 @@ class VoxelHashMap {
     for (int dx = -1; dx <= 1; ++dx) {
       for (int dy = -1; dy <= 1; ++dy) {
         for (int dz = -1; dz <= 1; ++dz) {
-          const auto it = voxels_.find(center + Voxel(dx, dy, dz));
-          if (it == voxels_.end()) continue;
-          for (const Eigen::Vector3d& point : it->second) visit(point);
+          const std::uint32_t block = find(center + Voxel(dx, dy, dz));
+          if (block == kNone) continue;
+          for (const Eigen::Vector3d& point : pointsOf(block)) visit(point);
         }
       }
     }
@@ -93,13 +96,13 @@ class VoxelHashMap {
   [[nodiscard]] std::vector<Eigen::Vector3d> pointCloud() const;
 
   /// Removes every point.
-  void clear() { voxels_.clear(); }
+  void clear();
 
   /// True when the map holds no point.
-  [[nodiscard]] bool empty() const { return voxels_.empty(); }
+  [[nodiscard]] bool empty() const { return voxels_ == 0; }
 
   /// The number of occupied voxels.
-  [[nodiscard]] std::size_t size() const { return voxels_.size(); }
+  [[nodiscard]] std::size_t size() const { return voxels_; }
 
   /// The number of points over all voxels.
   [[nodiscard]] std::size_t pointCount() const;
@@ -111,12 +114,62 @@ class VoxelHashMap {
   [[nodiscard]] int maxPointsPerVoxel() const { return max_points_per_voxel_; }
 
  private:
-  /// The points of one voxel (a small vector: at most max_points_per_voxel_).
-  using VoxelPoints = std::vector<Eigen::Vector3d>;
+  // An open-addressing table (linear probing, at most half full) from a
+  // voxel to its block: a fixed run of max_points_per_voxel_ points in one
+  // array. A search of the 27 voxels around a point, the registration's
+  // inner loop, then reads a slot and a block per voxel instead of
+  // following a hash node to a vector of its own: the table and the points
+  // are each one contiguous allocation.
+  static constexpr std::uint32_t kNone = 0xffffffffu;
+  struct Slot {
+    Voxel key = Voxel::Zero();
+    std::uint32_t block = kNone;  ///< kNone: an empty slot
+  };
+
+  /// The block of `voxel`, or kNone.
+  [[nodiscard]] std::uint32_t find(const Voxel& voxel) const {
+    if (slots_.empty()) return kNone;
+    for (std::size_t i = home(voxel);; i = (i + 1) & (slots_.size() - 1)) {
+      const Slot& slot = slots_[i];
+      if (slot.block == kNone) return kNone;
+      if (slot.key == voxel) return slot.block;
+    }
+  }
+  /// The slot where a search for `voxel` starts.
+  [[nodiscard]] std::size_t home(const Voxel& voxel) const {
+    // Fibonacci hashing of the spatial hash: neighbouring voxels spread over the table.
+    return static_cast<std::size_t>(
+        (static_cast<std::uint64_t>(VoxelHash{}(voxel)) * 0x9E3779B97F4A7C15ull) >> shift_);
+  }
+  /// The block of `voxel`, a new empty one when it has none.
+  std::uint32_t findOrAdd(const Voxel& voxel);
+  /// Puts `block` (of key keys_[block]) into the table, which has room.
+  void insertSlot(std::uint32_t block);
+  /// Frees `block`, empty now, and takes its voxel out of the table.
+  void releaseBlock(std::uint32_t block);
+  /// The table at `slots` slots (a power of two), every block re-entered.
+  void rehash(std::size_t slots);
+
+  [[nodiscard]] std::span<Eigen::Vector3d> pointsOf(std::uint32_t block) {
+    return {points_.data() + std::size_t{block} * stride_, counts_[block]};
+  }
+  [[nodiscard]] std::span<const Eigen::Vector3d> pointsOf(std::uint32_t block) const {
+    return {points_.data() + std::size_t{block} * stride_, counts_[block]};
+  }
+  [[nodiscard]] const Eigen::Vector3d& first(std::uint32_t block) const {
+    return points_[std::size_t{block} * stride_];
+  }
 
   double voxel_size_;
   int max_points_per_voxel_;
-  std::unordered_map<Voxel, VoxelPoints, VoxelHash> voxels_;
+  std::size_t stride_;                   ///< points per block
+  std::vector<Slot> slots_;              ///< the table, a power of two long (or empty)
+  int shift_ = 64;                       ///< 64 - log2(slots_.size())
+  std::vector<Voxel> keys_;              ///< each block's voxel
+  std::vector<std::uint32_t> counts_;    ///< each block's points (0: a free block)
+  std::vector<Eigen::Vector3d> points_;  ///< the blocks, stride_ points each
+  std::vector<std::uint32_t> free_;      ///< blocks to reuse
+  std::size_t voxels_ = 0;               ///< blocks in use
 };
 
 }  // namespace dcl::odometry
