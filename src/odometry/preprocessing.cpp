@@ -1,7 +1,8 @@
 #include <algorithm>
+#include <bit>
 #include <cmath>
+#include <cstdint>
 #include <optional>
-#include <unordered_set>
 #include <utility>
 
 #include <dcl/odometry/preprocessing.hpp>
@@ -113,11 +114,23 @@ double sweepDuration(const core::PointCloud& cloud) {
 
 std::vector<std::size_t> voxelDownsampleIndices(std::span<const Eigen::Vector3d> points,
                                                 double voxel_size) {
-  std::unordered_set<Voxel, VoxelHash> occupied;
-  occupied.reserve(points.size());
+  // The voxels met so far, an open-addressing set at most half full (linear
+  // probing): two allocations for the whole scan, where a node-based set
+  // allocates one per voxel.
+  std::size_t slots = 64;
+  while (slots < 2 * points.size()) slots *= 2;
+  const int shift = 64 - std::countr_zero(slots);
+  std::vector<Voxel> voxels(slots);
+  std::vector<std::uint8_t> occupied(slots, 0);
   std::vector<std::size_t> kept;
   for (std::size_t i = 0; i < points.size(); ++i) {
-    if (occupied.insert(voxelOf(points[i], voxel_size)).second) kept.push_back(i);
+    const Voxel voxel = voxelOf(points[i], voxel_size);
+    std::size_t slot = voxelSlot(voxel, shift);
+    while (occupied[slot] && voxels[slot] != voxel) slot = (slot + 1) & (slots - 1);
+    if (occupied[slot]) continue;
+    occupied[slot] = 1;
+    voxels[slot] = voxel;
+    kept.push_back(i);
   }
   return kept;
 }

@@ -28,6 +28,14 @@ struct VoxelHash {
   std::size_t operator()(const Voxel& voxel) const noexcept;
 };
 
+/// The first slot of `voxel` in an open-addressing table of 2^(64 - `shift`)
+/// slots: Fibonacci hashing of VoxelHash, which spreads neighbouring voxels
+/// over the table.
+inline std::size_t voxelSlot(const Voxel& voxel, int shift) {
+  return static_cast<std::size_t>(
+      (static_cast<std::uint64_t>(VoxelHash{}(voxel)) * 0x9E3779B97F4A7C15ull) >> shift);
+}
+
 /// The nearest map point to a query and its squared distance.
 struct Neighbor {
   Eigen::Vector3d point = Eigen::Vector3d::Zero();  ///< the map point, in the map frame
@@ -136,11 +144,7 @@ class VoxelHashMap {
     }
   }
   /// The slot where a search for `voxel` starts.
-  [[nodiscard]] std::size_t home(const Voxel& voxel) const {
-    // Fibonacci hashing of the spatial hash: neighbouring voxels spread over the table.
-    return static_cast<std::size_t>(
-        (static_cast<std::uint64_t>(VoxelHash{}(voxel)) * 0x9E3779B97F4A7C15ull) >> shift_);
-  }
+  [[nodiscard]] std::size_t home(const Voxel& voxel) const { return voxelSlot(voxel, shift_); }
   /// The block of `voxel`, a new empty one when it has none.
   std::uint32_t findOrAdd(const Voxel& voxel);
   /// Puts `block` (of key keys_[block]) into the table, which has room.
