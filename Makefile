@@ -31,12 +31,15 @@ demo:
 
 # The fuzzers' clang build runs beside ctest at the lowest priority: it takes
 # the cycles the tests leave (the live robots' tests wait on real time), and
-# the tests keep their cores whenever they want them. It has its own process
-# group, which a failing ctest stops.
+# the tests keep their cores whenever they want them. It has a session of its
+# own, whose process group a failing ctest stops; where the kernel groups the
+# scheduling by session (autogroup), that group gets the lowest priority too,
+# or it would share the cores half and half with ctest's.
 FUZZ_BUILD_LOG = $(BUILD_DIR)/fuzz-build.log
+FUZZ_BUILD = { echo 19 >/proc/self/autogroup; } 2>/dev/null; exec nice -n 19 scripts/fuzz --build-only
 test: build
 	@scripts/setup --npm-prefix $(BUILD_DIR)/npm
-	@setsid nice -n 19 scripts/fuzz --build-only >$(FUZZ_BUILD_LOG) 2>&1 & fuzz=$$!; \
+	@setsid -w sh -c '$(FUZZ_BUILD)' >$(FUZZ_BUILD_LOG) 2>&1 & fuzz=$$!; \
 	  ctest --test-dir $(BUILD_DIR) --output-on-failure -j $(JOBS) || \
 	    { kill -- -$$fuzz 2>/dev/null; exit 1; }; \
 	  wait $$fuzz || { tail -n 40 $(FUZZ_BUILD_LOG); echo "fuzzers' build failed" >&2; exit 1; }
