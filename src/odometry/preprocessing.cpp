@@ -117,8 +117,7 @@ std::vector<std::size_t> voxelDownsampleIndices(std::span<const Eigen::Vector3d>
   // The voxels met so far, an open-addressing set at most half full (linear
   // probing): two allocations for the whole scan, where a node-based set
   // allocates one per voxel.
-  std::size_t slots = 64;
-  while (slots < 2 * points.size()) slots *= 2;
+  const std::size_t slots = std::max<std::size_t>(64, std::bit_ceil(2 * points.size()));
   const int shift = 64 - std::countr_zero(slots);
   std::vector<Voxel> voxels(slots);
   std::vector<std::uint8_t> occupied(slots, 0);

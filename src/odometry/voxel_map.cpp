@@ -33,7 +33,6 @@ void VoxelHashMap::clear() {
   counts_.clear();
   points_.clear();
   free_.clear();
-  voxels_ = 0;
 }
 
 void VoxelHashMap::insertSlot(std::uint32_t block) {
@@ -52,7 +51,7 @@ void VoxelHashMap::rehash(std::size_t slots) {
 
 std::uint32_t VoxelHashMap::findOrAdd(const Voxel& voxel) {
   if (const std::uint32_t block = find(voxel); block != kNone) return block;
-  if (2 * (voxels_ + 1) > slots_.size()) rehash(std::max<std::size_t>(64, 2 * slots_.size()));
+  if (2 * (size() + 1) > slots_.size()) rehash(std::max<std::size_t>(64, 2 * slots_.size()));
   std::uint32_t block = 0;
   if (!free_.empty()) {
     block = free_.back();
@@ -65,14 +64,12 @@ std::uint32_t VoxelHashMap::findOrAdd(const Voxel& voxel) {
     points_.resize(points_.size() + stride_);
   }
   insertSlot(block);
-  ++voxels_;
   return block;
 }
 
 void VoxelHashMap::releaseBlock(std::uint32_t block) {
   counts_[block] = 0;
   free_.push_back(block);
-  --voxels_;
   // Backward-shift deletion: each entry after the hole that may sit in it
   // (its home is not between the hole and itself) moves into it.
   const std::size_t mask = slots_.size() - 1;

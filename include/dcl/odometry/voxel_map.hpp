@@ -107,10 +107,10 @@ class VoxelHashMap {
   void clear();
 
   /// True when the map holds no point.
-  [[nodiscard]] bool empty() const { return voxels_ == 0; }
+  [[nodiscard]] bool empty() const { return size() == 0; }
 
   /// The number of occupied voxels.
-  [[nodiscard]] std::size_t size() const { return voxels_; }
+  [[nodiscard]] std::size_t size() const { return counts_.size() - free_.size(); }
 
   /// The number of points over all voxels.
   [[nodiscard]] std::size_t pointCount() const;
@@ -173,7 +173,6 @@ class VoxelHashMap {
   std::vector<std::uint32_t> counts_;    ///< each block's points (0: a free block)
   std::vector<Eigen::Vector3d> points_;  ///< the blocks, stride_ points each
   std::vector<std::uint32_t> free_;      ///< blocks to reuse
-  std::size_t voxels_ = 0;               ///< blocks in use
 };
 
 }  // namespace dcl::odometry
