@@ -2,7 +2,7 @@
 #   make demo   install what the program needs, build only it, run the main job
 #   make test   install what is missing, build, run the whole test suite
 #               (ctest while the fuzzers build, then every decoder's
-#               libFuzzer target for 20 s)
+#               libFuzzer target for 10 s)
 
 BUILD_DIR ?= build
 JOBS ?= $(shell nproc)
@@ -43,7 +43,7 @@ test: build
 	  ctest --test-dir $(BUILD_DIR) --output-on-failure -j $(JOBS) || \
 	    { kill -- -$$fuzz 2>/dev/null; exit 1; }; \
 	  wait $$fuzz || { tail -n 40 $(FUZZ_BUILD_LOG); echo "fuzzers' build failed" >&2; exit 1; }
-	scripts/fuzz --seconds 20
+	scripts/fuzz --seconds 10
 
 bench: setup
 	cmake -S . -B $(BUILD_DIR)-bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DDCL_BUILD_TESTS=OFF -DDCL_BUILD_BENCHMARKS=ON
