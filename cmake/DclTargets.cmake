@@ -14,21 +14,38 @@ endfunction()
 # (the standard library, Eigen, fmt and spdlog, which nearly every file of the
 # project includes) the libraries and the program reuse instead of parsing
 # those headers again in each of their files.
+# With the tests, a second one, dcl_pch_tests, compiled as the test programs
+# are (DCL_TEST_OPTIMIZATION): GCC refuses a precompiled header built at
+# another optimisation level.
 function(dcl_add_precompiled_headers)
-  add_library(dcl_pch STATIC ${PROJECT_SOURCE_DIR}/cmake/pch.cpp)
-  target_link_libraries(dcl_pch PUBLIC Eigen3::Eigen spdlog::spdlog fmt::fmt)
-  dcl_set_options(dcl_pch)
   set(headers <algorithm> <array> <cmath> <cstddef> <cstdint> <functional> <limits> <map>
               <memory> <optional> <set> <span> <string> <string_view> <utility> <vector>
               <Eigen/Core> <Eigen/Geometry> <fmt/format.h> <spdlog/spdlog.h>)
-  target_precompile_headers(dcl_pch PRIVATE ${headers})
+  set(targets dcl_pch)
+  if(DCL_BUILD_TESTS)
+    list(APPEND targets dcl_pch_tests)
+  endif()
+  foreach(target ${targets})
+    add_library(${target} STATIC ${PROJECT_SOURCE_DIR}/cmake/pch.cpp)
+    target_link_libraries(${target} PUBLIC Eigen3::Eigen spdlog::spdlog fmt::fmt)
+    dcl_set_options(${target})
+    target_precompile_headers(${target} PRIVATE ${headers})
+  endforeach()
+  if(DCL_BUILD_TESTS)
+    target_compile_options(dcl_pch_tests PRIVATE ${DCL_TEST_OPTIMIZATION})
+  endif()
 endfunction()
 
-# dcl_use_precompiled_headers(<target>): <target> reuses dcl_pch's header
-# (when DCL_PCH made it; a file whose flags differ parses the headers itself).
+# dcl_use_precompiled_headers(<target> [<pch target>]): <target> reuses the
+# header of dcl_pch, or of the one named (when DCL_PCH made it; a file whose
+# flags differ parses the headers itself).
 function(dcl_use_precompiled_headers target)
-  if(TARGET dcl_pch)
-    target_precompile_headers(${target} REUSE_FROM dcl_pch)
+  set(pch dcl_pch)
+  if(ARGC GREATER 1)
+    set(pch ${ARGV1})
+  endif()
+  if(TARGET ${pch})
+    target_precompile_headers(${target} REUSE_FROM ${pch})
     # GCC 12 loses the system-header status of code it reads from a
     # precompiled header, and then reports its known false positives in
     # std::string's inlined copies (-Warray-bounds, -Wstringop-overflow,
@@ -74,7 +91,8 @@ function(dcl_add_test name)
   target_compile_definitions(${name} PRIVATE DCL_DATA_DIR="${DCL_DATA_DIR}"
                                              DCL_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
   dcl_set_options(${name})
-  dcl_use_precompiled_headers(${name})
+  target_compile_options(${name} PRIVATE ${DCL_TEST_OPTIMIZATION})
+  dcl_use_precompiled_headers(${name} dcl_pch_tests)
   if(DCL_UNITY)
     dcl_unity_batches(${name} ${DCL_UNITY_BATCH})
   endif()
