@@ -58,19 +58,22 @@ void checkWorld(const World& world) {
 /// step), whose bits differ between Intel's and AMD's CPUs, and so do the
 /// distances by which Embree orders two triangles a beam meets at nearly one
 /// depth (along an edge two triangles share, at the seam of a wall and the
-/// ground). So Embree's distance is only a first answer: a second query
-/// around it gathers every triangle the beam meets within kTieWindow of it
-/// (Embree's tests of whether a beam meets a triangle use no estimate, and
-/// give the same answer everywhere), each one's distance is computed here in
-/// double precision from its corners, and the nearest wins, the lower index
-/// on a tie (Impl::makeHit). A simulated dataset is then the same bits on
+/// ground). So Embree's distance is only a first answer: the query's filter
+/// (Impl::keepNearest) goes on to every triangle the beam meets within
+/// kTieWindow past the nearest of Embree's distances (Embree's tests of
+/// whether a beam meets a triangle use no estimate, and give the same answer
+/// everywhere), each one's distance is computed here in double precision
+/// from its corners, and the nearest wins, the lower index on a tie
+/// (Impl::makeHit). One query does it: a second one over the window, as this
+/// caster first did, gave the same bits and took a third longer per scan
+/// (`dcl-slam bench sim`, BENCHMARKS.md). A simulated dataset is then the same bits on
 /// every x86-64 CPU (`ctest -R ScanChecksums`, which also runs the scans on
 /// an emulated CPU and with glibc's AVX2 and FMA paths switched off). SSE2
 /// stays: the tests of whether a beam meets a triangle are then one code
 /// path everywhere, without the fused multiply-adds of AVX2.
 constexpr const char* kDeviceConfig = "isa=sse2";
 
-/// The second query's window around Embree's distance: its estimate is off
+/// The window past Embree's nearest distance: its estimate is off
 /// by a few units in the last place of a float (1e-7 of the range), so
 /// every triangle that could be nearer is within it, and none that is
 /// farther by more than a millimetre in 100 m can win.
@@ -116,13 +119,14 @@ struct RayCaster::Impl {
   std::vector<Eigen::Vector3f> vertices;                ///< the world's, for the exact range
   std::vector<std::array<std::uint32_t, 3>> triangles;  ///< the world's
 
-  /// The second query's state: for each lane of a packet, the nearest
-  /// triangle met so far by its exact range.
+  /// The query's state: for each lane of a packet, the nearest triangle met
+  /// so far by its exact range.
   struct TieContext {
     RTCIntersectContext context;  ///< first: Embree hands the filter a pointer to it
     const Impl* impl = nullptr;
     std::array<double, kPacket> range{};
     std::array<unsigned, kPacket> prim{};
+    std::array<float, kPacket> far{};  ///< the window's end past the nearest of Embree's distances
     std::array<Eigen::Vector3d, kPacket> origin{};  ///< the beams'
     std::array<Eigen::Vector3d, kPacket> dir{};
   };
@@ -151,7 +155,7 @@ void RayCaster::Impl::build(const World& world) {
   rtcSetSceneBuildQuality(scene.get(), kBuildQuality);
   // Without ROBUST a beam exactly along an edge shared by two triangles can
   // slip through a closed mesh (measured at no cost to trace speed); the
-  // context's filter runs the second query (Impl::keepNearest).
+  // context's filter weighs the triangles near the nearest (Impl::keepNearest).
   rtcSetSceneFlags(scene.get(), static_cast<RTCSceneFlags>(RTC_SCENE_FLAG_ROBUST |
                                                            RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION));
   if (world.triangles.empty()) {
@@ -211,17 +215,26 @@ RayHit RayCaster::Impl::makeHit(unsigned prim, double range, const Eigen::Vector
   return hit;
 }
 
-/// The second query's filter: every triangle the beam meets in the window is
-/// weighed by its exact range and refused, so that the query goes on to the
-/// window's end whatever order Embree meets them in.
+/// The query's filter. Every triangle the beam meets is weighed by its exact
+/// range, and the hit is accepted with the beam's far end moved to the
+/// window's end past the nearest of Embree's distances met so far (Embree
+/// lets a filter move it), not to the hit: Embree then goes on to every
+/// triangle within the window of the nearest, whatever order it meets them
+/// in, and to none much farther.
 void RayCaster::Impl::keepNearest(const RTCFilterFunctionNArguments* args) {
   auto* tie = reinterpret_cast<TieContext*>(args->context);
   for (unsigned i = 0; i < args->N; ++i) {
     if (args->valid[i] != -1) continue;
-    args->valid[i] = 0;
     const unsigned lane = RTCRayN_id(args->ray, args->N, i);
+    if (lane >= static_cast<unsigned>(kPacket)) {
+      args->valid[i] = 0;
+      continue;
+    }
+    float& tfar = RTCRayN_tfar(args->ray, args->N, i);  // Embree's distance to this triangle
+    const float window = tfar * kTieWindowRelative + kTieWindowAbsolute;
+    tie->far[lane] = std::min(tie->far[lane], tfar + window);
+    tfar = tie->far[lane];
     const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
-    if (lane >= static_cast<unsigned>(kPacket)) continue;
     const double range = tie->impl->exactRange(prim, tie->origin[lane], tie->dir[lane]);
     if (!(range >= 0.0)) continue;
     if (range < tie->range[lane] || (range == tie->range[lane] && prim < tie->prim[lane])) {
@@ -231,55 +244,26 @@ void RayCaster::Impl::keepNearest(const RTCFilterFunctionNArguments* args) {
   }
 }
 
-/// Both queries of one packet (its valid lanes `valid`, their hits into `hits`).
+/// One packet's query (its valid lanes `valid`, their hits into `hits`).
 void RayCaster::Impl::castPacket(RTCRayHit16& packet, const int* valid,
                                  std::span<RayHit> hits) const {
-  RTCIntersectContext first;
-  rtcInitIntersectContext(&first);
-  first.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-  rtcIntersect16(valid, scene.get(), &first, &packet);
-
   TieContext tie;
   rtcInitIntersectContext(&tie.context);
   tie.context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
   tie.context.filter = keepNearest;
   tie.impl = this;
   tie.range.fill(std::numeric_limits<double>::infinity());
-  alignas(64) int again[kPacket];
-  std::array<unsigned, kPacket> first_prim{};
   auto& r = packet.ray;
   for (int lane = 0; lane < kPacket; ++lane) {
-    again[lane] = 0;
-    if (valid[lane] == 0 || packet.hit.geomID[lane] == RTC_INVALID_GEOMETRY_ID) continue;
-    again[lane] = -1;
-    first_prim[lane] = packet.hit.primID[lane];
+    tie.far[lane] = r.tfar[lane];
     tie.origin[lane] = {r.org_x[lane], r.org_y[lane], r.org_z[lane]};
     tie.dir[lane] = {r.dir_x[lane], r.dir_y[lane], r.dir_z[lane]};
-    const float window = r.tfar[lane] * kTieWindowRelative + kTieWindowAbsolute;
-    r.tnear[lane] = std::max(0.0f, r.tfar[lane] - window);
-    r.tfar[lane] += window;
-    packet.hit.geomID[lane] = RTC_INVALID_GEOMETRY_ID;
   }
-  rtcIntersect16(again, scene.get(), &tie.context, &packet);
-
+  rtcIntersect16(valid, scene.get(), &tie.context, &packet);
   for (std::size_t lane = 0; lane < hits.size(); ++lane) {
-    if (again[lane] == 0) {
-      hits[lane] = RayHit{};
-      continue;
-    }
-    const Eigen::Vector3d& origin = tie.origin[lane];
-    const Eigen::Vector3d& dir = tie.dir[lane];
-    unsigned prim = tie.prim[lane];
-    double range = tie.range[lane];
-    if (!std::isfinite(range)) {  // the window lost the first answer: keep it
-      prim = first_prim[lane];
-      range = exactRange(prim, origin, dir);
-      if (!(range >= 0.0)) {
-        hits[lane] = RayHit{};
-        continue;
-      }
-    }
-    hits[lane] = makeHit(prim, range, dir);
+    hits[lane] = std::isfinite(tie.range[lane])
+                     ? makeHit(tie.prim[lane], tie.range[lane], tie.dir[lane])
+                     : RayHit{};
   }
 }
 
