@@ -276,7 +276,8 @@ void runBenchSim(const BenchSimOptions& o) {
   const io::DatasetSpec spec = io::readDataset(o.dataset, datasetReadOptions());
   const auto robots = benchRobots(spec, o.robot);
   auto start = Clock::now();
-  const sim::SimWorld world(spec, {.parallel = false});  // one scan per thread
+  // One scan per thread, each cast (what is timed), never read from a scan cache.
+  const sim::SimWorld world(spec, {.parallel = false, .scan_cache = false});
   const double build_s = secondsSince(start);
   const auto jobs = scanJobs(world, robots);
   start = Clock::now();

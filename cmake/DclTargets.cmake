@@ -83,9 +83,12 @@ function(dcl_add_module name)
   endif()
 endfunction()
 
-# dcl_add_test(<name> SOURCES ... DEPS ...): a GoogleTest executable whose cases ctest lists.
+# dcl_add_test(<name> [SCAN_CACHE] SOURCES ... DEPS ...): a GoogleTest
+# executable whose cases ctest lists; SCAN_CACHE: its cases share the suite's
+# scan cache (tests/CMakeLists.txt), for the cases that replay one dataset
+# each in its own process.
 function(dcl_add_test name)
-  cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
+  cmake_parse_arguments(ARG "SCAN_CACHE" "" "SOURCES;DEPS" ${ARGN})
   add_executable(${name} ${ARG_SOURCES})
   target_link_libraries(${name} PRIVATE ${ARG_DEPS} GTest::gtest GTest::gtest_main)
   target_compile_definitions(${name} PRIVATE DCL_DATA_DIR="${DCL_DATA_DIR}"
@@ -96,6 +99,12 @@ function(dcl_add_test name)
   if(DCL_UNITY)
     dcl_unity_batches(${name} ${DCL_UNITY_BATCH})
   endif()
-  gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST
-                       PROPERTIES ENVIRONMENT "DCL_DATA_DIR=${DCL_DATA_DIR}")
+  # One variable per property: gtest_discover_tests writes each list element
+  # of PROPERTIES out as an argument of its own, so a second variable in
+  # ENVIRONMENT would become a property.
+  set(properties ENVIRONMENT "DCL_DATA_DIR=${DCL_DATA_DIR}")
+  if(ARG_SCAN_CACHE AND DCL_TEST_SCAN_CACHE)
+    list(APPEND properties ENVIRONMENT_MODIFICATION "${DCL_TEST_SCAN_CACHE_ENV}")
+  endif()
+  gtest_discover_tests(${name} DISCOVERY_MODE PRE_TEST PROPERTIES ${properties})
 endfunction()

@@ -1,5 +1,8 @@
+#include <charconv>
+#include <cstdlib>
 #include <filesystem>
 #include <mutex>
+#include <string_view>
 
 #include <fmt/format.h>
 
@@ -10,6 +13,7 @@
 #include <dcl/sim/lidar_model.hpp>
 #include <dcl/sim/sim_source.hpp>
 
+#include "scan_cache.hpp"
 #include "world_detail.hpp"
 
 namespace dcl::sim {
@@ -73,6 +77,25 @@ ScanOptions scanOptionsOf(const io::SimSpec& sim, const SimWorldOptions& options
       .motion_distortion = sim.motion_distortion, .noise = sim.noise, .parallel = options.parallel};
 }
 
+/// The scan cache the environment names (SimWorldOptions::scan_cache); none when unset.
+std::unique_ptr<detail::ScanCache> scanCacheOf(const io::DatasetSpec& spec,
+                                               const std::vector<core::Trajectory>& ground_truth,
+                                               const SimWorldOptions& options) {
+  const char* folder = std::getenv(kScanCacheVariable);
+  if (!options.scan_cache || folder == nullptr || *folder == '\0') return nullptr;
+  std::uint64_t megabytes = 2048;
+  if (const char* text = std::getenv(kScanCacheSizeVariable); text != nullptr && *text != '\0') {
+    const std::string_view value(text);
+    const auto [end, ec] = std::from_chars(value.data(), value.data() + value.size(), megabytes);
+    if (ec != std::errc() || end != value.data() + value.size() || megabytes > (1ULL << 40)) {
+      throw core::Error(fmt::format("{}: '{}' is not a whole number of megabytes",
+                                    kScanCacheSizeVariable, value));
+    }
+  }
+  return std::make_unique<detail::ScanCache>(folder, detail::simulationKey(spec, ground_truth),
+                                             megabytes << 20);
+}
+
 /// The IMU's seed beside the LiDAR's `seed` (a unit's or a scan's): its own
 /// numbers, so that the scans do not change with it.
 std::uint64_t imuSeed(std::uint64_t seed) {
@@ -124,13 +147,15 @@ struct SimWorld::Impl {
   ImuModel imu;
   /// Each robot's IMU tilt (the first robot's for all when shared); empty without an IMU.
   std::vector<Eigen::Vector2d> imu_tilts;
+  std::unique_ptr<detail::ScanCache> cache;  ///< null without one
 
   Impl(const io::DatasetSpec& s, std::vector<core::Trajectory> gt, const SimWorldOptions& options)
       : spec(s),
         ground_truth(std::move(gt)),
         world(generateWorldOfKind(requireSim(s).world, requestOf(s, ground_truth))),
         simulator(world, modelOf(s), scanOptionsOf(*s.sim, options),
-                  generateTrafficOfKind(s.sim->world, requestOf(s, ground_truth), s.sim->traffic)) {
+                  generateTrafficOfKind(s.sim->world, requestOf(s, ground_truth), s.sim->traffic)),
+        cache(scanCacheOf(s, ground_truth, options)) {
     for (std::size_t r = 0; r < ground_truth.size(); ++r) {
       const std::size_t unit = s.sim->shared_unit ? 0 : r;
       units.push_back(s.sim->noise && s.sim->calibration_error
@@ -155,8 +180,21 @@ core::PointCloud SimWorld::scan(std::size_t robot, std::size_t index) const {
     throw core::Error(fmt::format("robot '{}': no scan {} (it has {})",
                                   impl_->spec.robots[robot].name, index, gt.size()));
   }
-  return impl_->simulator.scan(gt, gt.stamp(index), scanSeed(impl_->spec.sim->seed, robot, index),
-                               impl_->units[robot]);
+  if (impl_->cache) {
+    if (auto cached = impl_->cache->load(robot, index)) return std::move(*cached);
+  }
+  core::PointCloud scan = impl_->simulator.scan(
+      gt, gt.stamp(index), scanSeed(impl_->spec.sim->seed, robot, index), impl_->units[robot]);
+  if (impl_->cache) impl_->cache->store(robot, index, scan);
+  return scan;
+}
+
+std::uint64_t SimWorld::cachedScansRead() const {
+  return impl_->cache ? impl_->cache->hits() : 0;
+}
+
+std::uint64_t SimWorld::cachedScansStored() const {
+  return impl_->cache ? impl_->cache->stores() : 0;
 }
 
 std::optional<Eigen::Vector3d> SimWorld::up(std::size_t robot, std::size_t index) const {

@@ -6,10 +6,15 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <optional>
+#include <string>
 #include <thread>
+#include <utility>
+#include <vector>
 
 #include <gtest/gtest.h>
 
@@ -315,6 +320,144 @@ TEST_F(SimSourceTest, RefusesAGroundTruthPoseFarOutsideAnyWorld) {
     EXPECT_NE(message.find("pose 3 of " + file), std::string::npos) << message;
     EXPECT_NE(message.find("1000000.0"), std::string::npos) << message;
   }
+}
+
+/// The scan cache (DCL_SCAN_CACHE) of a folder of this test's own, the
+/// environment as it was restored after it.
+class ScanCacheTest : public SimSourceTest {
+ protected:
+  void SetUp() override {
+    SimSourceTest::SetUp();
+    for (const char* name : {kScanCacheVariable, kScanCacheSizeVariable}) {
+      const char* value = std::getenv(name);
+      saved_.emplace_back(name, value ? std::optional<std::string>(value) : std::nullopt);
+      ::unsetenv(name);
+    }
+    cache_ = dir_.string() + "_cache";
+    fs::remove_all(cache_);
+    ::setenv(kScanCacheVariable, cache_.c_str(), 1);
+  }
+  void TearDown() override {
+    for (const auto& [name, value] : saved_) {
+      if (value)
+        ::setenv(name.c_str(), value->c_str(), 1);
+      else
+        ::unsetenv(name.c_str());
+    }
+  }
+
+  /// Every scan file in the cache and their bytes.
+  [[nodiscard]] std::pair<std::vector<fs::path>, std::uintmax_t> cachedFiles() const {
+    std::vector<fs::path> files;
+    std::uintmax_t bytes = 0;
+    if (!fs::exists(cache_)) return {files, bytes};
+    for (const auto& entry : fs::recursive_directory_iterator(cache_)) {
+      if (!entry.is_regular_file()) continue;
+      files.push_back(entry.path());
+      bytes += entry.file_size();
+    }
+    std::sort(files.begin(), files.end());
+    return {files, bytes};
+  }
+
+  fs::path cache_;
+  std::vector<std::pair<std::string, std::optional<std::string>>> saved_;
+};
+
+TEST_F(ScanCacheTest, ScansReadBackAreTheBitsCastAndACopiedDatasetFindsThem) {
+  const io::DatasetSpec spec = write(test::tinyPreset());
+  const SimWorld cast(spec, {.scan_cache = false});
+  {
+    const SimWorld first(spec);
+    for (std::size_t robot = 0; robot < 2; ++robot)
+      for (std::size_t i = 0; i < 4; ++i)
+        EXPECT_TRUE(test::sameCloud(first.scan(robot, i), cast.scan(robot, i)));
+    EXPECT_EQ(first.cachedScansStored(), 8u);
+    EXPECT_EQ(first.cachedScansRead(), 0u);
+    EXPECT_EQ(cast.cachedScansStored(), 0u);
+  }
+  EXPECT_EQ(cachedFiles().first.size(), 8u);
+  // The dataset copied to another folder: the same scans, read and not cast.
+  const fs::path copy = dir_.string() + "_copy";
+  fs::remove_all(copy);
+  fs::copy(spec.folder, copy, fs::copy_options::recursive);
+  const SimWorld again(io::readDataset(copy.string()));
+  for (std::size_t robot = 0; robot < 2; ++robot)
+    for (std::size_t i = 0; i < 4; ++i)
+      EXPECT_TRUE(test::sameCloud(again.scan(robot, i), cast.scan(robot, i)));
+  EXPECT_EQ(again.cachedScansRead(), 8u);
+  EXPECT_EQ(again.cachedScansStored(), 0u);
+  // Another seed is another world: nothing of the first is read for it.
+  const fs::path other_folder = dir_.string() + "_other";
+  fs::remove_all(other_folder);
+  const SimWorld other(writeSimDataset(other_folder.string(), test::tinyPreset(8)));
+  EXPECT_FALSE(test::sameCloud(other.scan(0, 1), cast.scan(0, 1)));
+  EXPECT_EQ(other.cachedScansRead(), 0u);
+}
+
+TEST_F(ScanCacheTest, ADamagedFileIsCastAgainAndReplaced) {
+  const io::DatasetSpec spec = write(test::tinyPreset());
+  const SimWorld cast(spec, {.scan_cache = false});
+  { (void)SimWorld(spec).scan(0, 2); }
+  const auto files = cachedFiles().first;
+  ASSERT_EQ(files.size(), 1u);
+  fs::resize_file(files[0], fs::file_size(files[0]) / 2);  // as a disk that filled leaves it
+  {
+    const SimWorld damaged(spec);
+    EXPECT_TRUE(test::sameCloud(damaged.scan(0, 2), cast.scan(0, 2)));
+    EXPECT_EQ(damaged.cachedScansRead(), 0u);
+    EXPECT_EQ(damaged.cachedScansStored(), 1u);
+  }
+  const SimWorld repaired(spec);
+  EXPECT_TRUE(test::sameCloud(repaired.scan(0, 2), cast.scan(0, 2)));
+  EXPECT_EQ(repaired.cachedScansRead(), 1u);
+}
+
+TEST_F(ScanCacheTest, TheFolderStaysWithinItsBound) {
+  const io::DatasetSpec spec = write(test::tinyPreset(7, 40));
+  ::setenv(kScanCacheSizeVariable, "1", 1);  // 1 MB: a few VLP-16 scans
+  const SimWorld world(spec);
+  // Files the cache did not write, beside its own: never removed.
+  const fs::path notes = cache_ / "notes.txt";
+  const fs::path kept = cache_ / "0123456789abcdef" / "keep.pcd";
+  for (const fs::path& f : {notes, kept}) {
+    fs::create_directories(f.parent_path());
+    std::ofstream(f) << "mine";
+  }
+  std::uintmax_t one_scan = 0;
+  for (std::size_t i = 0; i < 40; ++i) {
+    (void)world.scan(i % 2, i / 2);
+    auto [files, bytes] = cachedFiles();
+    bytes -= 8;  // the two files of mine
+    if (i == 0) one_scan = bytes;
+    // The bound, and at most an eighth of it more written before the folder is measured again.
+    EXPECT_LE(bytes, (1u << 20) + (1u << 20) / 8 + one_scan) << "after scan " << i;
+  }
+  EXPECT_EQ(world.cachedScansStored(), 40u);
+  const auto [files, bytes] = cachedFiles();
+  EXPECT_GT(files.size(), 2u);
+  EXPECT_LT(files.size(), 40u);
+  EXPECT_TRUE(fs::exists(notes));
+  EXPECT_TRUE(fs::exists(kept));
+  // The latest scan stays: the files read or written longest ago went first.
+  EXPECT_TRUE(std::any_of(files.begin(), files.end(),
+                          [](const fs::path& f) { return f.filename() == "1-000019.pcd"; }));
+}
+
+TEST_F(ScanCacheTest, ASizeThatIsNotANumberIsNamed) {
+  const io::DatasetSpec spec = write(test::tinyPreset());
+  ::setenv(kScanCacheSizeVariable, "2GB", 1);
+  try {
+    SimWorld world(spec);
+    FAIL() << "a world was built";
+  } catch (const core::Error& e) {
+    EXPECT_NE(std::string(e.what()).find("DCL_SCAN_CACHE_MB: '2GB'"), std::string::npos)
+        << e.what();
+  }
+  ::setenv(kScanCacheVariable, "", 1);  // an empty folder name: no cache, nothing read
+  const SimWorld world(spec);
+  (void)world.scan(0, 0);
+  EXPECT_EQ(world.cachedScansStored(), 0u);
 }
 
 }  // namespace

@@ -26,7 +26,16 @@ namespace dcl::sim {
 /// How a simulated dataset's scans are computed (never changes their content).
 struct SimWorldOptions {
   bool parallel = true;  ///< cast each scan with TBB over all cores; off to parallelise over scans
+  /// Keep the scans in the folder the environment's DCL_SCAN_CACHE names,
+  /// when it names one, and read them back instead of casting them again
+  /// (at most DCL_SCAN_CACHE_MB megabytes, 2048 by default; the files used
+  /// longest ago go first). Off: every scan is cast. Default on.
+  bool scan_cache = true;
 };
+
+/// The environment variables of SimWorldOptions::scan_cache.
+inline constexpr const char* kScanCacheVariable = "DCL_SCAN_CACHE";
+inline constexpr const char* kScanCacheSizeVariable = "DCL_SCAN_CACHE_MB";
 
 /// What a simulated dataset regenerates its scans from: every robot's ground
 /// truth (T_world_sensor), the world generated around them, and the scan
@@ -36,8 +45,9 @@ class SimWorld {
  public:
   /// Reads every robot's ground truth and builds the world (this takes a while
   /// for long routes). Throws core::Error when the dataset has no `sim` section,
-  /// names an unknown sensor, or a robot lacks ground truth, and core::FileError
-  /// when a ground-truth file cannot be read.
+  /// names an unknown sensor, or a robot lacks ground truth, or when
+  /// DCL_SCAN_CACHE_MB is not a whole number, and core::FileError when a
+  /// ground-truth file cannot be read.
   explicit SimWorld(const io::DatasetSpec& spec, const SimWorldOptions& options = {});
   ~SimWorld();
   SimWorld(const SimWorld&) = delete;
@@ -67,6 +77,10 @@ class SimWorld {
   [[nodiscard]] const World& world() const;
   /// The scan simulator of the world.
   [[nodiscard]] const ScanSimulator& simulator() const;
+  /// Scans read from the scan cache so far, and scans cast and stored in it
+  /// (both 0 without one).
+  [[nodiscard]] std::uint64_t cachedScansRead() const;
+  [[nodiscard]] std::uint64_t cachedScansStored() const;
 
  private:
   struct Impl;
