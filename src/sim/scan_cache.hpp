@@ -50,9 +50,6 @@ class ScanCache {
   [[nodiscard]] std::uint64_t hits() const { return hits_; }
   [[nodiscard]] std::uint64_t stores() const { return stores_; }
 
-  /// The folder of this dataset's scans.
-  [[nodiscard]] const std::filesystem::path& folder() const { return dataset_folder_; }
-
  private:
   [[nodiscard]] std::filesystem::path file(std::size_t robot, std::size_t index) const;
   void trim();
