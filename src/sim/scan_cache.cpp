@@ -8,6 +8,7 @@
 #include <embree3/rtcore_config.h>
 #include <fmt/format.h>
 #include <gnu/libc-version.h>
+#include <spdlog/spdlog.h>
 
 #include <dcl/core/error.hpp>
 #include <dcl/io/file.hpp>
@@ -89,7 +90,10 @@ void ScanCache::store(std::size_t robot, std::size_t index, const core::PointClo
   try {
     fs::create_directories(dataset_folder_);
     io::writePcd(path.string(), scan, {.encoding = io::PcdEncoding::kBinaryCompressed});
-  } catch (const std::exception&) {
+  } catch (const std::exception& e) {
+    if (!warned_.exchange(true))
+      spdlog::warn("scan cache {}: cannot keep scans there, casting without it: {}", root_.string(),
+                   e.what());
     return;
   }
   ++stores_;

@@ -43,7 +43,7 @@ class ScanCache {
   [[nodiscard]] std::optional<core::PointCloud> load(std::size_t robot, std::size_t index) const;
   /// Keeps scan `index` of robot `robot`. A failure to write (a full disk, a
   /// folder without permission) leaves the cache as it was and is not an
-  /// error: the scan was cast all the same.
+  /// error (the scan was cast all the same): the first is logged as a warning.
   void store(std::size_t robot, std::size_t index, const core::PointCloud& scan);
 
   /// Scans found and scans stored by this object so far.
@@ -59,6 +59,7 @@ class ScanCache {
   std::uint64_t max_bytes_;
   mutable std::atomic<std::uint64_t> hits_{0};
   std::atomic<std::uint64_t> stores_{0};
+  std::atomic<bool> warned_{false};  ///< a failed store said so once
   std::mutex trim_mutex_;
   std::uint64_t stored_bytes_ = 0;  ///< written since the folder was last measured
 };

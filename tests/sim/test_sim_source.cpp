@@ -444,6 +444,17 @@ TEST_F(ScanCacheTest, TheFolderStaysWithinItsBound) {
                           [](const fs::path& f) { return f.filename() == "1-000019.pcd"; }));
 }
 
+TEST_F(ScanCacheTest, AFolderThatCannotBeWrittenLeavesTheScansAsCast) {
+  const io::DatasetSpec spec = write(test::tinyPreset());
+  std::ofstream(cache_) << "a file where the folder would be";
+  const SimWorld world(spec);
+  const SimWorld cast(spec, {.scan_cache = false});
+  EXPECT_TRUE(test::sameCloud(world.scan(0, 1), cast.scan(0, 1)));
+  EXPECT_TRUE(test::sameCloud(world.scan(1, 2), cast.scan(1, 2)));
+  EXPECT_EQ(world.cachedScansStored(), 0u);
+  EXPECT_TRUE(fs::is_regular_file(cache_));
+}
+
 TEST_F(ScanCacheTest, ASizeThatIsNotANumberIsNamed) {
   const io::DatasetSpec spec = write(test::tinyPreset());
   ::setenv(kScanCacheSizeVariable, "2GB", 1);
