@@ -34,7 +34,7 @@ struct IntensityModel {
   /// surface's reflectivity varies by a log-normal factor of this sigma from
   /// one cell of the world to the next (cells of albedo_cell metres), the same
   /// in every sweep.
-  float albedo_sigma = 0.7f;
+  float albedo_sigma = 0.8f;
   float albedo_cell = 0.5f;
   /// The receiver compresses strong echoes: above `knee` the reported
   /// intensity (noise included) grows `compression` times as fast as the

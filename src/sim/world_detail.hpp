@@ -240,6 +240,9 @@ class PropAdder {
                     double clearance, double gap = 0.5);
   /// A tree: trunk cylinder and ellipsoid crown.
   bool addTree(const Eigen::Vector2d& xy, Rng& rng);
+  /// A shrub: one to three overlapping ellipsoids of foliage on the ground,
+  /// lumpy as a real bush is, at most `radius` m across from `xy`.
+  bool addShrub(const Eigen::Vector2d& xy, double radius, Rng& rng);
   /// A lamp post with an arm reaching `arm` (world xy offset), or a sign pole.
   bool addPole(const Eigen::Vector2d& xy, const Eigen::Vector2d& arm, bool lamp);
   /// A parked car heading along `along` on the road at `xy`.

@@ -81,9 +81,21 @@ class LotFiller {
     Rng content(rng.next());
     if (!mid.fresh) return lot.length;
     const bool bend = adder_.spaced() && onBend(lot, frontage);
+    // The lot's garden: from behind the pavement's hedge to its facade, or the
+    // whole open lot. Its shrubs draw from a stream of their own.
+    const double pavement_back = style_.road_half_width + style_.pavement_width;
+    // Planted along the facade; scattered over an open lawn, a quarter as dense.
+    double garden_end = style_.setback_max + style_.depth_max;
+    double shrub_density = style_.shrub_density / 4;
     if (open || bend) addOpenLot(frame, frontage, content, !bend);
-    if (!open && !bend) addBuildings(frame, frontage, content);
+    if (!open && !bend) {
+      garden_end = addBuildings(frame, frontage, content) - 0.3;
+      shrub_density = style_.shrub_density;
+    }
     if (front) addFront(frame, frontage, content);
+    Rng shrubs(detail::mix(lotSeed(lot, k), 0x5b2));
+    addShrubs(frame, frontage, pavement_back + (front ? 1.8 : 0.3), garden_end, shrub_density,
+              shrubs);
     return lot.length;
   }
 
@@ -132,17 +144,36 @@ class LotFiller {
     return first.along.dot(last.along) < std::cos(25.0 * M_PI / 180.0);
   }
 
-  void addBuildings(const LotFrame& frame, double frontage, Rng& rng) {
+  /// The building and, on some lots, one behind it; returns the front
+  /// facade's distance from the route.
+  double addBuildings(const LotFrame& frame, double frontage, Rng& rng) {
     const double front = rng.uniform(style_.setback_min, style_.setback_max);
     const BuildingSpec spec = detail::randomBuilding(style_, front, frontage, rng);
     addFitting(frame, spec, rng);
-    if (!rng.chance(style_.back_row_share)) return;
+    if (!rng.chance(style_.back_row_share)) return front;
     const double back = front + spec.depth + rng.uniform(4.0, 12.0);
     BuildingSpec behind =
         detail::randomBuilding(style_, back, frontage * rng.uniform(0.6, 1.0), rng);
     const double tallest = style_.floors_max * style_.floor_height + 1.5;
     behind.height = std::min(behind.height + rng.integer(1, 4) * style_.floor_height, tallest);
     addFitting(frame, behind, rng);
+    return front;
+  }
+
+  /// Shrubs, `density` per 100 m^2, over the band b in [b0, b1] of the lot's frontage.
+  void addShrubs(const LotFrame& frame, double frontage, double b0, double b1, double density,
+                 Rng& rng) {
+    constexpr double kLargest = 1.2;  // m, a shrub's half-width at most
+    if (density <= 0.0 || b1 - b0 < 0.9) return;
+    const double area = frontage * (b1 - b0);
+    const int count = static_cast<int>(density * area / 100.0 + rng.uniform());
+    for (int i = 0; i < count; ++i) {
+      const double radius = std::min(rng.uniform(0.5, kLargest), (b1 - b0) / 2);
+      const double a = rng.uniform(-frontage / 2 + radius, frontage / 2 - radius);
+      const double b = rng.uniform(b0 + radius, b1 - radius);
+      Rng shrub_rng(rng.next());
+      adder_.addShrub(frame.toWorld(a, b), radius, shrub_rng);
+    }
   }
 
   /// The building or, when props are spaced (the campus) and it does not fit,
@@ -201,7 +232,9 @@ class LotFiller {
 }  // namespace
 
 WorldStyle cityStyle() {
-  return {};
+  WorldStyle s;
+  s.shrub_density = 20.0;
+  return s;
 }
 
 WorldStyle campusStyle() {
@@ -225,6 +258,7 @@ WorldStyle campusStyle() {
   s.tree_spacing = 8.0;
   s.tree_share = 0.8;
   s.lawn_tree_density = 0.5;
+  s.shrub_density = 3.0;
   s.parking_share = 0.35;
   s.pole_spacing = 20.0;
   s.terrain_amplitude = 1.0;

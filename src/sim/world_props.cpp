@@ -113,6 +113,23 @@ bool PropAdder::addTree(const Eigen::Vector2d& xy, Rng& rng) {
   return true;
 }
 
+bool PropAdder::addShrub(const Eigen::Vector2d& xy, double radius, Rng& rng) {
+  if (!clearDisc(xy, radius) || !fits(square(xy, radius), 0.3)) return false;
+  occupied_.add(square(xy, radius), false);
+  const double base = terrain_.height(xy);
+  const int lobes = rng.integer(1, 3);
+  for (int i = 0; i < lobes; ++i) {
+    const double across = rng.uniform(0.45, 1.0) * (lobes == 1 ? radius : 0.7 * radius);
+    const double tall = rng.uniform(0.35, 1.2);
+    const double reach = std::max(radius - across, 0.0);
+    const Eigen::Vector2d at =
+        xy + Eigen::Vector2d(rng.uniform(-reach, reach) * 0.7, rng.uniform(-reach, reach) * 0.7);
+    world_.addEllipsoid({at.x(), at.y(), base + 0.7 * tall}, {across, across * 0.85, tall}, 4,
+                        Surface::vegetation);
+  }
+  return true;
+}
+
 bool PropAdder::addPole(const Eigen::Vector2d& xy, const Eigen::Vector2d& arm, bool lamp) {
   if (!clearDisc(xy, 0.15) || (lamp && !clearDisc(xy + arm, 0.15))) return false;
   if (!fits(square(xy, 0.15), 0.3)) return false;

@@ -1210,13 +1210,17 @@ class Pcm(unittest.TestCase):
 class AliasingCorridor(unittest.TestCase):
     """The perceptual-aliasing corridor, where identical blocks repeat every
     48 m and only the cars parked along it for a while (traffic) tell a place
-    from its repeats, simulated into a folder of its own per test class."""
+    from its repeats, simulated into a folder of its own per test class. World
+    4: in world 1 nothing tells a place from its repeats (every match is
+    refused), in the others 54-98 loops are kept, none wrong (BENCHMARKS.md,
+    "No false loop in five worlds"); 4 keeps the fewest."""
 
     @classmethod
     def setUpClass(cls):
         cls.tmp = tempfile.TemporaryDirectory()
         cls.dataset = os.path.join(cls.tmp.name, "aliasing-3")
-        run("simulate", "--preset", "aliasing-3", "--traffic", "1", "--out", cls.dataset)
+        run("simulate", "--preset", "aliasing-3", "--seed", "4", "--traffic", "1", "--out",
+            cls.dataset)
 
     @classmethod
     def tearDownClass(cls):
@@ -1237,12 +1241,12 @@ class Loops(AliasingCorridor):
     def test_no_false_loop_survives_while_true_ones_do(self):
         loops = self.metrics["loops"]
         # Most matches land on a place that repeats on its own robot's route
-        # about as closely (327 of 366 in this world): they are refused,
-        # whether the match was the true place (136) or a repeat of it...
+        # about as closely (335 of 395 in this world): they are refused,
+        # whether the match was the true place (95) or a repeat of it...
         self.assertGreater(loops["refused_ambiguous"], 150)
         self.assertGreater(loops["refused_ambiguous"], 2 * loops["refused_ambiguous_true_place"])
-        # ...and of the places the parked cars make distinct, none is wrong
-        # and PCM keeps them all (39 of 39).
+        # ...and of the places the parked cars make distinct, PCM keeps every
+        # one verified right (54) and none wrong.
         self.assertEqual(loops["kept_wrong"], 0)
         self.assertEqual(loops["precision"], 1.0)
         self.assertGreater(loops["kept_correct"], 20)
@@ -1270,9 +1274,9 @@ class LoopsLive(AliasingCorridor):
     def test_robots_running_live_keep_no_false_loop(self):
         # Live, a robot matches a neighbour's place before either has passed
         # the block's repeat: the robot that asked judges the loop again when
-        # either robot passes a place like it, and withdraws it then (13 of
-        # robots a and c's loops in this world). With the corridor bare of
-        # parked cars, robots a and c of this world held three loops 336 m
+        # either robot passes a place like it, and withdraws it then (8 in
+        # this world, where a and c keep 12). With the corridor bare of
+        # parked cars, robots a and c of world 1 held three loops 336 m
         # off, their only link, while a place was tested against the
         # neighbour's repeats but not against the own.
         config = os.path.join(self.tmp.name, "unlimited.yaml")
@@ -1657,10 +1661,16 @@ class OutputFolders(unittest.TestCase):
                 self.assertTrue(os.path.exists(os.path.join(self.dataset, "dataset.yaml")))
 
     def test_an_interrupt_says_the_folder_keeps_what_it_held(self):
+        # A run of 400 frames a robot, seconds of work even with its scans
+        # cached, interrupted after 0.3 s (the class's 40 frames can be done by then).
+        long = os.path.join(self.tmp.name, "long")
+        run("simulate", "--preset", "small-3", "--robots", "2", "--max-scans", "400", "--out",
+            long)
         out = os.path.join(self.tmp.name, "interrupted")
-        run(*self.commands(out)["run"])
+        args = ["run", "--dataset", long, "--out", out]
+        run(*args, "--max-frames", "20")
         before = self.snapshot(out)
-        proc = subprocess.Popen([DCL_SLAM, *self.commands(out)["run"][:-2]],
+        proc = subprocess.Popen([DCL_SLAM, *args],
                                 stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
         time.sleep(0.3)
         proc.send_signal(signal.SIGINT)

@@ -157,16 +157,6 @@ std::vector<eval::ScanStatistics> realSweepStatistics() {
   return stats;
 }
 
-// Statistics the simulator does not model, and why they stay out of the test:
-// the share of scattered returns depends on how much foliage a street has
-// (the simulated city's spans 0.7-5 %, the real residential street's 4-5 %),
-// and how far the most scattered of them spread is at the real band's lower
-// edge with solid crowns (8.2 cm against 9.0-10.1 cm; foliage_depth of
-// 0.25-0.5 m puts it inside, but it stays off, see lidar_model.cpp).
-bool notModelled(const std::string& name) {
-  return name.starts_with("scattered");
-}
-
 TEST(Realism, CityHdl64SensorImperfectionsMatchRealKittiScans) {
   const auto real = realSweepStatistics();
   ASSERT_EQ(real.size(), 10u);
@@ -190,7 +180,6 @@ TEST(Realism, CityHdl64SensorImperfectionsMatchRealKittiScans) {
     const double median = values[values.size() / 2];
     std::printf("%-34s real %.4f-%.4f  simulated median %.4f\n", row.name.c_str(), band.lo, band.hi,
                 median);
-    if (notModelled(row.name)) continue;
     EXPECT_TRUE(band.contains(median, row.tolerance))
         << row.name << ": simulated median " << median << " outside the real band [" << band.lo
         << ", " << band.hi << "] +/- " << row.tolerance;

@@ -2,6 +2,7 @@
 // its keyframes' poses, the robots' maps merged, one point a voxel, each
 // labelled with the robot that gave most of its points.
 #include <cmath>
+#include <cstdio>
 #include <map>
 #include <set>
 #include <tuple>
@@ -178,21 +179,28 @@ TEST(MergedMap, TheVoxelBoundsItsSize) {
 TEST(MergedMap, TheRobotsMapsCoincideAtTheTruePoses) {
   const std::vector<VoxelMap> maps = street().maps();
   // Where the robots saw the same street, their maps lie on the same surfaces,
-  // within the sensors' noise and their lasers' calibration errors...
+  // within the sensors' noise, their lasers' calibration errors and the
+  // foliage's scatter (0.027-0.037 m)...
   for (std::size_t r = 1; r < 3; ++r) {
     const test::MapDistance d = test::mapDistance(maps[r], maps[r - 1]);
     EXPECT_GT(d.points, maps[r].size() / 3) << r;
-    EXPECT_LT(d.median, 0.035) << r;
+    std::printf("median distance of %zu's map to %zu's: %.4f m\n", r, r - 1, d.median);
+    EXPECT_LT(d.median, 0.045) << r;
   }
   // ...which they do not when each cloud is placed at the next keyframe's pose,
-  // or robot b's map is 10 cm off.
+  // or robot b's map is 10 cm off (0.08 m).
   const Street::Robot& b = street().robots.at(1);
   std::vector<Eigen::Isometry3d> next = b.T_world_keyframe;
   std::rotate(next.begin(), next.begin() + 1, next.end());
-  EXPECT_GT(test::mapDistance(robotMap(b.clouds, next, 1), maps[0]).median, 0.04);
+  const double at_next = test::mapDistance(robotMap(b.clouds, next, 1), maps[0]).median;
   std::vector<Eigen::Isometry3d> off = b.T_world_keyframe;
   for (Eigen::Isometry3d& T : off) T.translation().x() += 0.1;
-  EXPECT_GT(test::mapDistance(robotMap(b.clouds, off, 1), maps[0]).median, 0.04);
+  const double moved = test::mapDistance(robotMap(b.clouds, off, 1), maps[0]).median;
+  std::printf(
+      "median distance to a's map: b at the next keyframe's poses %.4f m, 10 cm off %.4f m\n",
+      at_next, moved);
+  EXPECT_GT(at_next, 0.06);
+  EXPECT_GT(moved, 0.06);
 }
 
 TEST(MergedMap, RefusesPosesThatDoNotFitTheClouds) {

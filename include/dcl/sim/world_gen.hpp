@@ -46,8 +46,11 @@ struct WorldStyle {
   double tree_share = 0.5;         ///< share of tree slots holding a tree
   double lawn_tree_density = 0.2;  ///< trees per 100 m^2 of open lot
   double parking_share = 0.0;      ///< share of open lots that are car parks
-  double pole_spacing = 30.0;      ///< m between lamp posts and sign poles along each side
-  double car_share = 0.7;          ///< share of parking slots (6.5 m) holding a car
+  /// Shrubs per 100 m^2 of front garden (between the pavement, or its hedge,
+  /// and a facade set back far enough); an open lawn has a quarter as many.
+  double shrub_density = 0.0;
+  double pole_spacing = 30.0;  ///< m between lamp posts and sign poles along each side
+  double car_share = 0.7;      ///< share of parking slots (6.5 m) holding a car
   // Terrain.
   double extent = 120.0;           ///< m, no geometry farther than this from every route
   double ground_cell = 2.0;        ///< m, ground mesh spacing within 50 m of a route (8 m beyond)
