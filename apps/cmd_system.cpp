@@ -352,6 +352,8 @@ void runSystem(const SystemOptions& o, const AppConfig& config) {
     if (name == "none") continue;
     sim::makePreset(name, {.data_dir = o.data});  // an unknown name or missing data: fail early
   }
+  // A place the tables cannot be written fails now, not after the runs.
+  if (!o.markdown.empty()) io::TempFile probe(o.markdown);
   std::vector<DatasetRun> runs;
   std::vector<DatasetRun> scales;
   for (const std::uint64_t seed : o.seeds) {

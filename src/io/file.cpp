@@ -61,8 +61,12 @@ TempFile::TempFile(const std::string& path) : path_(path), target_(followLinks(p
   const fs::path target(target_);
   std::error_code ec;
   if (fs::is_directory(target, ec)) throw FileError({path_}, "is a folder, not a file");
-  if (target.has_parent_path()) fs::create_directories(target.parent_path(), ec);
-  if (ec) throw FileError({path_}, "cannot create folder: " + ec.message());
+  // A bare file name is in the working folder: nothing to create (and `ec`
+  // still holds is_directory's "no such file" for a new one).
+  if (target.has_parent_path()) {
+    fs::create_directories(target.parent_path(), ec);
+    if (ec) throw FileError({path_}, "cannot create folder: " + ec.message());
+  }
   // Appended piece by piece: GCC 12 warns (falsely) on `"." + std::string`.
   const std::string hidden = std::string(".").append(target.filename().string()).append(".XXXXXX");
   std::string name = (target.parent_path() / hidden).string();

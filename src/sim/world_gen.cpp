@@ -81,10 +81,10 @@ class LotFiller {
     Rng content(rng.next());
     if (!mid.fresh) return lot.length;
     const bool bend = adder_.spaced() && onBend(lot, frontage);
-    // The lot's garden: from behind the pavement's hedge to its facade, or the
-    // whole open lot. Its shrubs draw from a stream of their own.
+    // The lot's garden, from behind the pavement (and its hedge) to the facade,
+    // planted along it; or the whole open lot, its shrubs a quarter as dense.
+    // They draw from a stream of their own.
     const double pavement_back = style_.road_half_width + style_.pavement_width;
-    // Planted along the facade; scattered over an open lawn, a quarter as dense.
     double garden_end = style_.setback_max + style_.depth_max;
     double shrub_density = style_.shrub_density / 4;
     if (open || bend) addOpenLot(frame, frontage, content, !bend);
@@ -232,9 +232,7 @@ class LotFiller {
 }  // namespace
 
 WorldStyle cityStyle() {
-  WorldStyle s;
-  s.shrub_density = 20.0;
-  return s;
+  return {};
 }
 
 WorldStyle campusStyle() {
@@ -274,6 +272,7 @@ WorldStyle aliasingStyle() {
   WorldStyle s;
   s.repeat_period = 48.0;
   s.open_share = 0.0;
+  s.shrub_density = 0.0;  // bare blocks, as on its flat and even ground
   s.terrain_amplitude = 0.0;
   s.ground_roughness = 0.0;
   return s;

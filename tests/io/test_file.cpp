@@ -56,6 +56,16 @@ TEST(FileTest, WriteFileAtomicCreatesFoldersAndReplaces) {
   EXPECT_EQ(filesIn(dir / "a" / "b"), std::vector<std::string>{"out.txt"});  // no temporary left
 }
 
+TEST(FileTest, WriteFileAtomicTakesABareNameInTheWorkingFolder) {
+  const auto dir = test::freshDir("write_bare");
+  const auto before = std::filesystem::current_path();
+  std::filesystem::current_path(dir);
+  EXPECT_NO_THROW(writeFileAtomic("tables.md", [](std::ostream& out) { out << "| a |"; }));
+  std::filesystem::current_path(before);
+  EXPECT_EQ(test::readBytes((dir / "tables.md").string()), "| a |");
+  EXPECT_EQ(filesIn(dir), std::vector<std::string>{"tables.md"});
+}
+
 TEST(FileTest, WriteFileAtomicKeepsTheOldFileWhenTheWriterThrows) {
   const auto dir = test::freshDir("write_throws");
   const std::string path = (dir / "out.txt").string();

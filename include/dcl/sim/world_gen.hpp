@@ -48,7 +48,7 @@ struct WorldStyle {
   double parking_share = 0.0;      ///< share of open lots that are car parks
   /// Shrubs per 100 m^2 of front garden (between the pavement, or its hedge,
   /// and a facade set back far enough); an open lawn has a quarter as many.
-  double shrub_density = 0.0;
+  double shrub_density = 20.0;
   double pole_spacing = 30.0;  ///< m between lamp posts and sign poles along each side
   double car_share = 0.7;      ///< share of parking slots (6.5 m) holding a car
   // Terrain.
@@ -74,7 +74,8 @@ struct WorldStyle {
   double repeat_period = 0.0;  ///< m; > 0: every lot identical, one every period along each route
 };
 
-/// The city: 15 m streets lined with parked cars, 2-7 storey blocks 11-16 m from the centreline.
+/// The city: 15 m streets lined with parked cars, 2-7 storey blocks 11-16 m from the centreline,
+/// their front gardens planted with shrubs.
 WorldStyle cityStyle();
 /// The campus: narrow roads, 1-4 storey buildings of varied size 5-8 m back from the road
 /// and filling the blocks and the land beyond the outer streets, many trees, hedges,
