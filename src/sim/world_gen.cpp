@@ -19,6 +19,12 @@ using detail::Rng;
 /// Nothing but road, kerb and ground comes nearer a route than this (m); the
 /// tests check the 3 m.
 constexpr double kRouteClearance = 3.3;
+/// m behind the pavement: where a lot's hedge or garden wall starts, and
+/// where the garden behind it (a hedge is 0.8 m deep) starts.
+constexpr double kFrontBehindPavement = 0.8;
+constexpr double kGardenBehindFront = 1.8;
+/// m behind the pavement where the garden of a lot without a hedge starts.
+constexpr double kGardenBehindPavement = 0.3;
 
 /// Fills the lots along the routes with buildings, trees, poles, cars and hedges.
 class LotFiller {
@@ -94,8 +100,8 @@ class LotFiller {
     }
     if (front) addFront(frame, frontage, content);
     Rng shrubs(detail::mix(lotSeed(lot, k), 0x5b2));
-    addShrubs(frame, frontage, pavement_back + (front ? 1.8 : 0.3), garden_end, shrub_density,
-              shrubs);
+    addShrubs(frame, frontage, pavement_back + (front ? kGardenBehindFront : kGardenBehindPavement),
+              garden_end, shrub_density, shrubs);
     return lot.length;
   }
 
@@ -216,7 +222,7 @@ class LotFiller {
 
   /// A hedge or a garden wall at the back of the pavement.
   void addFront(const LotFrame& frame, double frontage, Rng& rng) {
-    const double b = style_.road_half_width + style_.pavement_width + 0.8;
+    const double b = style_.road_half_width + style_.pavement_width + kFrontBehindPavement;
     const bool hedge = rng.chance(0.6);
     const LotBox box{0, b, frontage - 1.0, hedge ? 0.8 : 0.3, 0, rng.uniform(1.0, 1.8)};
     const Surface surface = hedge ? Surface::vegetation : Surface::wall;
